@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import json
+
+from robogest.errors import InputError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -12,7 +15,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Train a learned generator on a dataset folder (GENEA/Trinity, BEAT2, or NAME.wav + "
         "NAME.bvh|.npz pairs). Writes OUT/last.pt (every epoch), OUT/best.pt (lowest validation loss) and "
         "OUT/history.json; either .pt works with `robogest speak --generator NAME --checkpoint FILE`. "
-        "Launch with torchrun for multi-GPU DistributedDataParallel training.",
+        "Launch with torchrun for multi-GPU DistributedDataParallel training. The rhythmic model trains its stages "
+        "(audio encoder, lexicon, generator, interpreters) one after another, so it needs --epochs >= 4.",
     )
     p.add_argument("--model", default="gesticulator", help="model to train (default: %(default)s)")
     p.add_argument("--data", required=True, metavar="DIR", help="dataset folder")
@@ -22,12 +26,35 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto", help="default: %(default)s")
     p.add_argument("--batch-size", type=int, default=64, help="global batch size (default: %(default)s)")
-    p.add_argument("--lr", type=float, default=1e-4, help="Adam learning rate (default: %(default)s)")
+    p.add_argument(
+        "--lr", type=float, help="Adam learning rate (default: the model's paper value: gesticulator 1e-4, rhythmic "
+        "3e-4; s2ag always uses its own two rates, see --set lr_generator=...)",
+    )  # fmt: skip
     p.add_argument("--val-fraction", type=float, default=0.1, help="share of takes for validation")
     p.add_argument("--window-stride", type=int, default=5, help="frames between training windows")
     p.add_argument("--text-encoder", default="minilm", help="text encoder name (default: %(default)s)")
     p.add_argument("--cache-dir", metavar="DIR", help="feature cache (default: ~/.cache/robogest/features)")
+    p.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", dest="options",
+        help="model option, repeatable: a field of the model's config class (GesticulatorConfig, RhythmicConfig, "
+        "S2AGConfig), VALUE as JSON or a bare word, e.g. --set lexicon_size=30 --set stages=joint; an unknown "
+        "option is refused with the list of known ones",
+    )  # fmt: skip
     p.set_defaults(func=run)
+
+
+def parse_options(items: list[str]) -> dict[str, object]:
+    """``["KEY=VALUE", ...]`` -> dict; VALUE is JSON (number, true/false, list) or else a plain string."""
+    out: dict[str, object] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            raise InputError(f"--set {item!r}: expected KEY=VALUE, e.g. --set lexicon_size=30")
+        try:
+            out[key.strip()] = json.loads(raw)
+        except json.JSONDecodeError:
+            out[key.strip()] = raw
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
@@ -49,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
         text_encoder=args.text_encoder,
         text_encoder_kwargs=kwargs,
         cache_dir=args.cache_dir,
+        model_overrides=parse_options(args.options),
     )
     best = train(cfg)
     print(f"best checkpoint: {best}")

@@ -17,6 +17,7 @@ to the shorter. Features are cached as ``.npz`` keyed by the input files (path, 
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -57,6 +58,10 @@ class Take:
     poses : ndarray [shape=(T, J * 3)], float32, radians
         Canonical joint rotations as exponential maps.
     fps : float
+    audio_path : Path, optional
+        The recording, for models that re-analyse time-scaled audio (the Rhythmic Gesticulator's blocks).
+    audio_start_frame : int
+        Frame of the recording at which this take starts (non-zero for a take cut from a longer one).
     """
 
     name: str
@@ -64,6 +69,8 @@ class Take:
     text: np.ndarray
     poses: np.ndarray
     fps: float
+    audio_path: Path | None = None
+    audio_start_frame: int = 0
 
     @property
     def n_frames(self) -> int:
@@ -72,8 +79,26 @@ class Take:
     def slice(self, start: int, stop: int, name: str | None = None) -> Take:
         """Frames ``[start, stop)`` as a new take."""
         return Take(
-            name or self.name, self.acoustic[start:stop], self.text[start:stop], self.poses[start:stop], self.fps
-        )
+            name or self.name, self.acoustic[start:stop], self.text[start:stop], self.poses[start:stop], self.fps,
+            self.audio_path, self.audio_start_frame + start,
+        )  # fmt: skip
+
+    def read_audio(self, sr: int) -> np.ndarray:
+        """This take's samples ``(N,)`` at ``sr`` Hz, mono, starting at its frame 0 (sample ``t * sr / fps`` is
+        frame ``t``).
+
+        Raises
+        ------
+        InputError
+            The take has no recording (``audio_path`` is None) or it cannot be read.
+        """
+        from robogest.speech.audio import read_audio, resample
+
+        if self.audio_path is None:
+            raise InputError(f"take {self.name}: no audio file is known")
+        raw, file_sr = read_audio(self.audio_path, math.inf)
+        audio = resample(raw, file_sr, sr)
+        return audio[round(self.audio_start_frame * sr / self.fps) :]
 
 
 def _first(stem_dir: Path, name: str, exts: Sequence[str]) -> Path | None:
@@ -168,7 +193,7 @@ def compute_take(files: TakeFiles, config: FeatureConfig, encoder=None) -> Take:
     n = min(acoustic.shape[0], poses.shape[0])
     if n == 0:
         raise InputError(f"{files.audio}: the take has no frames")
-    return Take(files.name, acoustic[:n], text[:n], poses[:n], float(config.fps))
+    return Take(files.name, acoustic[:n], text[:n], poses[:n], float(config.fps), files.audio)
 
 
 def load_take(
@@ -180,7 +205,7 @@ def load_take(
     if path.is_file():
         try:
             with np.load(path) as z:
-                return Take(files.name, z["acoustic"], z["text"], z["poses"], float(z["fps"]))
+                return Take(files.name, z["acoustic"], z["text"], z["poses"], float(z["fps"]), files.audio)
         except (OSError, KeyError, ValueError):
             pass  # unreadable cache entry: recompute and overwrite
     take = compute_take(files, config, encoder)

@@ -13,7 +13,6 @@ skeleton's joint rotations as exponential maps, normalised per dimension (the pa
 
 from __future__ import annotations
 
-import dataclasses
 from collections import deque
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
@@ -21,14 +20,13 @@ from typing import Any
 
 import numpy as np
 
-from robogest.learn import require_torch
+from robogest.learn import config_with_overrides, require_torch
 
 torch = require_torch("the 'gesticulator' generator")
 nn = torch.nn
 F = torch.nn.functional
 
 from robogest.data.features import expmap_to_motion, speech_inputs  # noqa: E402
-from robogest.errors import InputError  # noqa: E402
 from robogest.generators.learned import CheckpointGenerator  # noqa: E402
 from robogest.motion.human_motion import HumanMotion  # noqa: E402
 from robogest.speech.types import Speech  # noqa: E402
@@ -232,10 +230,9 @@ class GesticulatorSpec:
     name = "gesticulator"
 
     def make_config(self, n_acoustic: int, n_text: int, n_pose: int, overrides: dict[str, Any]) -> GesticulatorConfig:
-        bad = set(overrides) - {f.name for f in dataclasses.fields(GesticulatorConfig)}
-        if bad:
-            raise InputError(f"unknown gesticulator option(s): {', '.join(sorted(bad))}")
-        return GesticulatorConfig.from_dict({**overrides, "n_acoustic": n_acoustic, "n_text": n_text, "n_pose": n_pose})
+        return config_with_overrides(
+            GesticulatorConfig, "gesticulator", overrides, n_acoustic=n_acoustic, n_text=n_text, n_pose=n_pose
+        )
 
     def config_from_dict(self, d: dict[str, Any]) -> GesticulatorConfig:
         return GesticulatorConfig.from_dict(d)

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from robogest.learn import require_torch
+from robogest.learn import config_with_overrides, require_torch
 
 torch = require_torch("the 's2ag' generator")
 nn = torch.nn
@@ -530,10 +530,7 @@ class S2AGSpec:
     name = "s2ag"
 
     def make_config(self, n_acoustic: int, n_text: int, n_pose: int, overrides: dict[str, Any]) -> S2AGConfig:
-        bad = set(overrides) - {f.name for f in dataclasses.fields(S2AGConfig)}
-        if bad:
-            raise InputError(f"unknown s2ag option(s): {', '.join(sorted(bad))}")
-        return S2AGConfig.from_dict({**overrides, "n_text": n_text})
+        return config_with_overrides(S2AGConfig, "s2ag", overrides, n_text=n_text)
 
     def config_from_dict(self, d: dict[str, Any]) -> S2AGConfig:
         return S2AGConfig.from_dict(d)

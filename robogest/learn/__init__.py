@@ -7,6 +7,7 @@ what to install.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from typing import Any
 
@@ -45,4 +46,45 @@ def get_model_spec(name: str) -> Any:
     return getattr(importlib.import_module(module), attr)
 
 
-__all__ = ["LEARN_HINT", "MODEL_SPECS", "get_model_spec", "model_names", "require_torch"]
+def config_with_overrides(cls: type, model: str, overrides: dict[str, Any], **fixed: Any) -> Any:
+    """``cls`` (a model config dataclass) from its defaults, user ``overrides`` and the data's ``fixed`` sizes.
+
+    Overrides come from ``robogest train --set KEY=VALUE`` or :attr:`TrainConfig.model_overrides`; each must name
+    a field of ``cls`` and have the type of its default (an int is accepted for a float, a list for a tuple).
+
+    Raises
+    ------
+    InputError
+        Unknown option, or a value of the wrong type; the message names the model, the option and the value.
+    """
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    bad = sorted(set(overrides) - set(fields))
+    if bad:
+        raise InputError(f"unknown {model} option(s): {', '.join(bad)}; options are {', '.join(sorted(fields))}")
+    values = {}
+    for key, value in overrides.items():
+        f = fields[key]
+        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
+        values[key] = _coerce(model, key, value, default)
+    return cls(**{**values, **fixed})
+
+
+def _coerce(model: str, key: str, value: Any, default: Any) -> Any:
+    kind = type(default)
+    ok = {
+        bool: isinstance(value, bool),
+        int: isinstance(value, int) and not isinstance(value, bool),
+        float: isinstance(value, int | float) and not isinstance(value, bool),
+        str: isinstance(value, str),
+        tuple: isinstance(value, list | tuple),
+    }.get(kind, True)
+    if not ok:
+        raise InputError(f"{model} option {key}={value!r}: expected {kind.__name__} (default {default!r})")
+    if kind is float:
+        return float(value)
+    if kind is tuple:
+        return tuple(value)
+    return value
+
+
+__all__ = ["LEARN_HINT", "MODEL_SPECS", "config_with_overrides", "get_model_spec", "model_names", "require_torch"]

@@ -65,7 +65,16 @@ class ModelSpec(Protocol):
 #: ``train_step(model, optimizers, speech, poses, epoch, config) -> dict[str, float]``
 #:     One batch, including ``zero_grad``/``backward``/``step``; must return ``"loss"`` (the value logged as the
 #:     train loss) and may return more named values, averaged per epoch into ``history.json``.
-OPTIONAL_SPEC_METHODS = ("fit_config", "make_windows", "make_optimizers", "train_step")
+#: ``plan_epochs(config, epochs) -> config``
+#:     Fill epoch-dependent config fields (a schedule of training stages) from ``--epochs``; fresh runs only, so a
+#:     resumed run keeps the plan in its checkpoint.
+#: ``first_best_epoch(config) -> int``
+#:     Epochs before this one (0-based) never become ``best.pt`` (e.g. before every stage has trained).
+#: ``stage_name(epoch, config) -> str``
+#:     What the epoch trains, for the log line and ``history.json``.
+OPTIONAL_SPEC_METHODS = (
+    "fit_config", "make_windows", "make_optimizers", "train_step", "plan_epochs", "first_best_epoch", "stage_name",
+)  # fmt: skip
 
 
 @dataclass
@@ -82,8 +91,8 @@ class TrainConfig:
         Total epochs (a resumed run continues up to this number).
     batch_size : int
         Global batch (split over DDP ranks).
-    lr : float
-        Adam learning rate.
+    lr : float or None
+        Adam learning rate; None: the model config's ``lr`` (its paper's value) or 1e-4.
     seed : int
         Seeds the split, initialisation, shuffling and dropout.
     device : {"auto", "cpu", "cuda"}
@@ -106,7 +115,7 @@ class TrainConfig:
     out: str = ""
     epochs: int = 20
     batch_size: int = 64
-    lr: float = 1e-4
+    lr: float | None = None
     seed: int = 0
     device: str = "auto"
     resume: bool = False
@@ -198,7 +207,7 @@ def train(cfg: TrainConfig, log: Callable[[str], None] | None = None) -> Path:
 
 
 def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, torch) -> Path:
-    if cfg.epochs < 1 or cfg.batch_size < 1 or not cfg.lr > 0:
+    if cfg.epochs < 1 or cfg.batch_size < 1 or (cfg.lr is not None and not cfg.lr > 0):
         raise InputError("epochs and batch size must be >= 1 and lr > 0")
     out = Path(cfg.out)
     seed_everything(cfg.seed)
@@ -222,6 +231,8 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         mcfg = spec.make_config(n_acoustic, n_text, n_pose, dict(cfg.model_overrides))
         if hasattr(spec, "fit_config"):
             mcfg = spec.fit_config(mcfg, train_takes)
+        if hasattr(spec, "plan_epochs"):
+            mcfg = spec.plan_epochs(mcfg, cfg.epochs)
     seq = spec.sequence_length(mcfg)
     if hasattr(spec, "make_windows"):
         xs, ys, _ = spec.make_windows(train_takes, norm, mcfg, seq, cfg.window_stride)  # (N, L, F), (N, L, P)
@@ -238,7 +249,8 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
     if hasattr(spec, "make_optimizers"):
         optimizers = dict(spec.make_optimizers(model, cfg, mcfg))
     else:
-        optimizers = {"optimizer": torch.optim.Adam(model.parameters(), lr=cfg.lr)}
+        lr = cfg.lr if cfg.lr is not None else float(getattr(mcfg, "lr", 1e-4))
+        optimizers = {"optimizer": torch.optim.Adam(model.parameters(), lr=lr)}
     start, history, best = 0, [], math.inf
     if resume_ckpt is not None:
         model.load_state_dict(resume_ckpt["model_state"])
@@ -280,15 +292,18 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
         return make_checkpoint(cfg.model, dataclasses.asdict(mcfg), fcfg.to_dict(), norm.to_dict(), state, train_state)
 
+    first_best = spec.first_best_epoch(mcfg) if hasattr(spec, "first_best_epoch") else 0
     bar = _progress(info.is_main)
     for epoch in range(start, cfg.epochs):
+        stage = spec.stage_name(epoch, mcfg) if hasattr(spec, "stage_name") else ""
         t_ep = time.perf_counter()
         g = torch.Generator().manual_seed(cfg.seed * 100_003 + epoch)
         batches = _batches(x_t.shape[0], cfg.batch_size, g, info)
         net.train()
         total, count = 0.0, 0
         parts: dict[str, float] = {}
-        task = bar.add_task(f"epoch {epoch + 1}/{cfg.epochs}", total=len(batches), loss="-") if bar else None
+        what = f"epoch {epoch + 1}/{cfg.epochs}" + (f" [{stage}]" if stage else "")
+        task = bar.add_task(what, total=len(batches), loss="-") if bar else None
         if bar and epoch == start:
             bar.start()
         for b in batches:
@@ -319,10 +334,12 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         entry = dataclasses.asdict(EpochLog(epoch + 1, train_loss, val, time.perf_counter() - t_ep, part_means))
         if not entry["parts"]:
             del entry["parts"]  # plain specs keep their history format
+        if stage:
+            entry["stage"] = stage
         history.append(entry)
         score = val if not math.isnan(val) else train_loss
-        improved = score < best
-        best = min(best, score)
+        improved = epoch >= first_best and score < best
+        best = score if improved else best
         if info.is_main:
             ckpt = checkpoint(epoch + 1)
             save_checkpoint(ckpt, out / "last.pt")
@@ -330,7 +347,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
                 save_checkpoint(ckpt, best_path)
             (out / "history.json").write_text(json.dumps(history, indent=1), encoding="utf-8")
         say(
-            f"epoch {epoch + 1}/{cfg.epochs}  train {train_loss:.4f}  val {val:.4f}  "
+            f"{what}  train {train_loss:.4f}  val {val:.4f}  "
             f"{history[-1]['seconds']:.1f} s{'  *best' if improved else ''}"
         )
     if bar:

@@ -101,13 +101,7 @@ def acoustic_features(audio: np.ndarray, sr: int, config: SpeechConfig, activity
         return {"mel_db": np.zeros((0, config.n_mels), np.float32), "mfcc": np.zeros((0, 37), np.float32),
                 "rms": z, "pitch_hz": z.copy()}  # fmt: skip
 
-    with warnings.catch_warnings():  # "n_fft too large" for clips shorter than one window: padding handles it
-        warnings.filterwarnings("ignore", message="n_fft=.*too large", category=UserWarning)
-        mel = librosa.feature.melspectrogram(
-            y=audio, sr=sr, n_fft=win, hop_length=hop, win_length=win, n_mels=config.n_mels, power=2.0,
-            center=True, pad_mode="constant",
-        )  # fmt: skip
-    mel_db = librosa.power_to_db(mel, ref=1.0, amin=1e-10, top_db=None).T.astype(np.float32)
+    mel_db = log_mel_db(audio, sr, hop, win, config.n_mels)
     cep = librosa.feature.mfcc(S=mel_db.T, n_mfcc=N_MFCC).T.astype(np.float32)
     rms = frame_rms(audio, sr, hop, win)
 
@@ -129,6 +123,34 @@ def acoustic_features(audio: np.ndarray, sr: int, config: SpeechConfig, activity
         "rms": _take(rms[:m], n_frames, pos).astype(np.float32),
         "pitch_hz": _take(pitch, n_frames, pos, nearest=True).astype(np.float32),
     }
+
+
+def log_mel_db(audio: np.ndarray, sr: int, hop: int, win: int, n_mels: int, center: bool = True) -> np.ndarray:
+    """The front-end's log-power mel spectrogram; one function so time-scaled audio is analysed identically.
+
+    Parameters
+    ----------
+    audio : ndarray [shape=(..., N)], float32
+        One signal, or a stack of equally long ones.
+    sr, hop, win : int
+        Hz, samples, samples (the FFT size is the window).
+    center : bool
+        Frame ``t`` centred at sample ``t * hop`` with zero padding (True) or starting there (False).
+
+    Returns
+    -------
+    ndarray [shape=(..., T, n_mels)], dB re 1.0, floor -100 dB
+    """
+    import librosa
+
+    with warnings.catch_warnings():  # "n_fft too large" for clips shorter than one window: padding handles it
+        warnings.filterwarnings("ignore", message="n_fft=.*too large", category=UserWarning)
+        mel = librosa.feature.melspectrogram(
+            y=audio, sr=sr, n_fft=win, hop_length=hop, win_length=win, n_mels=n_mels, power=2.0,
+            center=center, pad_mode="constant",
+        )  # fmt: skip
+    db = librosa.power_to_db(mel, ref=1.0, amin=1e-10, top_db=None)  # (..., n_mels, T)
+    return np.swapaxes(db, -1, -2).astype(np.float32)  # (..., T, n_mels)
 
 
 def _with_differences(cep: np.ndarray) -> np.ndarray:

@@ -106,6 +106,27 @@ def test_normalization_and_windows():
     np.testing.assert_array_equal(back.pose_std, norm.pose_std)
 
 
+def test_take_knows_its_audio_also_when_cut_from_a_longer_one(tmp_path):
+    """Models that re-analyse time-scaled audio (the Rhythmic Gesticulator) read a take's samples from its file,
+    from the take's first frame on, cached or not, and for the time split of a single take."""
+    from robogest.speech.audio import read_audio
+
+    root = make_fixture_dataset(tmp_path / "d", n_takes=1, duration_s=4.0)
+    files = discover_takes(root)[0]
+    take = ds.load_take(files, CFG, cache_dir=tmp_path / "c")
+    cached = ds.load_take(files, CFG, cache_dir=tmp_path / "c")
+    assert take.audio_path == cached.audio_path == files.audio
+    raw, sr = read_audio(files.audio, 60.0)
+    assert sr == 16000
+    np.testing.assert_array_equal(take.read_audio(16000), raw)
+    train, val = split_takes([take], 0.25)
+    assert val[0].audio_start_frame == train[0].n_frames
+    np.testing.assert_array_equal(val[0].read_audio(16000), raw[train[0].n_frames * 800 :])
+    assert val[0].slice(10, 20).audio_start_frame == train[0].n_frames + 10
+    with pytest.raises(InputError, match="no audio file"):
+        _take("a", 10, 0).read_audio(16000)
+
+
 def test_empty_folder_is_input_error(tmp_path):
     with pytest.raises(InputError, match="no takes found"):
         discover_takes(tmp_path)
