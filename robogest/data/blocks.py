@@ -7,10 +7,10 @@ last frames mapped onto the block's first and last frames (endpoint-aligned), so
 * a linear trajectory round-trips exactly and neighbouring clips stay continuous after denormalisation;
 * denormalising gives back exactly ``sum(n)`` frames, i.e. the input's duration to the frame.
 
-Audio is time-scaled either in the feature domain (:func:`normalize_clips` on the log-mel frames: only the time
-axis is rescaled, so pitch, i.e. the mel band of every partial, is preserved) or on the waveform with librosa's
-phase vocoder followed by a fresh mel analysis (:func:`tsm_mel_blocks`, the paper's TSM route). Numpy + librosa
-only; no torch here.
+Audio is time-scaled on the waveform with librosa's phase vocoder followed by a fresh mel analysis
+(:func:`tsm_mel_blocks`, the paper's TSM route), or, for frame arrays without their audio, in the feature domain
+(:func:`normalize_clips` on the log-mel frames: only the time axis is rescaled, so the mel band of every partial is
+kept). Numpy + librosa only; no torch here.
 """
 
 from __future__ import annotations
@@ -237,44 +237,53 @@ def gaussian_smooth(x: np.ndarray, kernel: int = 5, sigma: float | None = None) 
 def tsm_mel_blocks(
     audio: np.ndarray, sr: int, bounds: np.ndarray, fps: float, k: int, n_mels: int = 64, window_s: float = 0.1
 ) -> np.ndarray:
-    """Mel blocks from pitch-preserving time-scaled audio (the paper's TSM route, §4.2.2).
+    """Mel blocks of pitch-preserving time-scaled audio, features recomputed (the paper's TSM route, §4.2.2).
 
-    Each clip's samples are stretched with librosa's phase vocoder (``librosa.effects.time_stretch``) to ``k``
-    frames' worth of audio and the log-mel spectrogram is recomputed on the stretched signal with the front-end's
-    settings (``window_s`` window, hop ``sr / fps``, centred frames).
+    Clip ``[a, b)`` (frames) is stretched with librosa's phase vocoder at the constant rate ``r = (n - 1) / (k - 1)``
+    source frames per block frame, so block frame ``j`` is centred where the motion block's frame ``j`` samples the
+    clip (:func:`normalize_clips` is endpoint-aligned: source frame ``a + j r``). The clip is stretched together
+    with half a mel window (plus the vocoder's own window) of the audio on each side, so the block's edge frames
+    see real audio as the front-end's frames do, and the log-mel is recomputed on the stretched signal with the
+    front-end's analysis (:func:`robogest.speech.features.log_mel_db`: ``window_s`` window, hop ``sr / fps``).
+    A clip of ``k`` frames (``r = 1``) therefore reproduces the front-end's own frames.
 
     Parameters
     ----------
     audio : ndarray [shape=(N,)], float32
+        The take's samples; frame ``t`` is centred at sample ``t * hop``.
     sr : int
         Hz.
     bounds : ndarray [shape=(C + 1,)], int
-        Clip boundaries in frames at ``fps``.
+        Clip boundaries in frames at ``fps`` (:func:`clip_bounds`).
 
     Returns
     -------
     ndarray [shape=(C, k, n_mels)], dB re 1.0
     """
-    import warnings
-
     import librosa
+
+    from robogest.speech.features import log_mel_db
 
     hop = max(1, math.floor(sr / fps + 1e-9))
     win = max(16, round(window_s * sr))
-    out = np.zeros((len(bounds) - 1, k, n_mels), np.float32)
-    for c, (a, b) in enumerate(itertools.pairwise(bounds)):
-        seg = audio[int(a) * hop : int(b) * hop].astype(np.float32)
-        if seg.shape[0] < 2 * 512:  # too short for the phase vocoder's STFT: pad by repeating the edge
-            seg = np.pad(seg, (0, 2 * 512 - seg.shape[0]), mode="edge") if seg.size else np.zeros(1024, np.float32)
-        rate = seg.shape[0] / (k * hop)  # > 1 shortens
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message="n_fft=.*too large", category=UserWarning)
-            stretched = librosa.effects.time_stretch(seg, rate=rate)
-            stretched = librosa.util.fix_length(stretched, size=k * hop)
-            mel = librosa.feature.melspectrogram(
-                y=stretched, sr=sr, n_fft=win, hop_length=hop, win_length=win, n_mels=n_mels, power=2.0,
-                center=True, pad_mode="constant",
-            )  # fmt: skip
-        db = librosa.power_to_db(mel, ref=1.0, amin=1e-10, top_db=None).T  # (k + 1, n_mels)
-        out[c] = db[:k]
+    n_fft = 1 << max(6, round(math.log2(0.032 * sr)))  # vocoder STFT: 32 ms (512 at 16 kHz), hop a quarter
+    audio = np.asarray(audio, np.float32)
+    bounds = np.asarray(bounds, dtype=int)
+    lengths = np.diff(bounds)
+    out = np.zeros((lengths.shape[0], k, n_mels), np.float32)
+    for n in np.unique(lengths):  # one vocoder call per clip length (= rate) on the stack of those clips
+        which = np.flatnonzero(lengths == n)
+        r = max(max(int(n) - 1, 0) / (k - 1), 0.1)  # one-frame clips: a slow stretch of the frame's neighbourhood
+        margin = math.ceil(r * win / 2) + n_fft  # source samples kept on each side
+        span = (int(n) - 1) * hop + 2 * margin
+        segs = np.zeros((which.shape[0], span), np.float32)  # zero outside the audio, like the front-end's padding
+        for row, c in enumerate(which):
+            lo = int(bounds[c]) * hop - margin
+            s0, s1 = max(lo, 0), min(lo + span, audio.shape[0])
+            if s1 > s0:
+                segs[row, s0 - lo : s1 - lo] = audio[s0:s1]
+        stretched = librosa.effects.time_stretch(segs, rate=r, n_fft=n_fft, hop_length=n_fft // 4)  # (m, ~span / r)
+        first = round(margin / r - win / 2)  # start of block frame 0's window in the stretched signal
+        piece = librosa.util.fix_length(stretched[:, first:], size=(k - 1) * hop + win, axis=-1)
+        out[which] = log_mel_db(piece, sr, hop, win, n_mels, center=False)[:, :k]  # (m, k, n_mels)
     return out

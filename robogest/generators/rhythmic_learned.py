@@ -2,9 +2,11 @@
 
 Importing this module needs PyTorch; register the generator through a lazy factory.
 
-Data (§4.2, :mod:`robogest.data.blocks`): speech and motion are cut at beats and every clip is time-scaled to a
-block of ``K = D_M * fps`` frames (10 at 0.5 s, 20 fps). Generated blocks are time-scaled back to their clips'
-exact frame counts and Gaussian-smoothed (kernel 5).
+Data (§4.2, :mod:`robogest.data.blocks`, :func:`take_blocks`): speech and motion are cut at beats and every clip is
+time-scaled to a block of ``K = D_M * fps`` frames (10 at 0.5 s, 20 fps): motion and text by resampling, audio by
+pitch-preserving time-scale modification of the waveform (librosa's phase vocoder) with the log-mel recomputed on the
+stretched audio. Generated blocks are time-scaled back to their clips' exact frame counts and Gaussian-smoothed
+(kernel 5).
 
 Parts, one :class:`RhythmicNet`:
 
@@ -23,15 +25,15 @@ Parts, one :class:`RhythmicNet`:
   (:func:`robogest.data.blocks.silent_blocks`), so takes without transcripts train the hint too.
 
 Beats: training takes and run-time speech are cut by one rule, :func:`take_rhythm` (the speech module's
-``identify_beats`` on the whole take's standardised log-mel, :func:`robogest.data.blocks.frame_beats`);
-:meth:`RhythmicSpec.make_windows` computes it per take and hands the clip starts to the loss as frame channels.
-``Speech.beats_s`` (found on the waveform) is not used, since training has no waveform to find it on.
+``identify_beats`` on the whole take's standardised log-mel, :func:`robogest.data.blocks.frame_beats`), and turned
+into blocks by one function, :func:`take_blocks`. ``Speech.beats_s`` (found on the waveform) is not used, since
+cached training takes keep only their features.
 
-Training through :func:`robogest.learn.trainer.train` (one optimiser, one loss): the trainer's frame windows are
-segmented at beats inside the loss, and the four stages of the paper run *concurrently with stop-gradients*
-instead of one after another: each part is optimised only by its own objective and downstream parts read
-detached outputs of upstream ones (frozen parameters are used through detached copies), so no stage's loss
-moves another stage's weights. See :meth:`RhythmicNet.forward`.
+Training through :func:`robogest.learn.trainer.train`: :meth:`RhythmicSpec.make_windows` cuts every take into
+blocks once and hands the trainer windows of ``window_blocks`` consecutive blocks. The paper's stages run one after
+another (``stages="sequential"``, the default): audio-encoder pre-training, lexicon, generator, interpreters, each
+for its share of ``--epochs`` (:meth:`RhythmicSpec.plan_epochs`), every earlier stage frozen. ``stages="joint"``
+trains all four at once, each only by its own objective (downstream parts read detached outputs of upstream ones).
 """
 
 from __future__ import annotations
@@ -52,18 +54,20 @@ F = torch.nn.functional
 
 from robogest.data.blocks import (  # noqa: E402
     block_frames,
-    block_index,
     clip_bounds,
     denormalize_blocks,
     frame_beats,
     gaussian_smooth,
+    normalize_clips,
     quiet_frames,
     silent_blocks,
+    tsm_mel_blocks,
 )
-from robogest.data.features import expmap_to_motion, speech_inputs  # noqa: E402
-from robogest.data.prep import slice_windows  # noqa: E402
+from robogest.data.features import FeatureConfig, expmap_to_motion, speech_inputs  # noqa: E402
+from robogest.data.prep import Normalization, slice_windows  # noqa: E402
 from robogest.errors import InputError  # noqa: E402
 from robogest.generators.learned import CheckpointGenerator  # noqa: E402
+from robogest.learn import config_with_overrides  # noqa: E402
 from robogest.motion.human_motion import HumanMotion  # noqa: E402
 from robogest.speech.types import Speech  # noqa: E402
 
@@ -71,9 +75,13 @@ from robogest.speech.types import Speech  # noqa: E402
 TEXT_SCALE = 15.0
 
 
+#: Training stages in the paper's order (§4.1.3, §5.1, §5.3, §6).
+STAGES = ("encoder", "lexicon", "generator", "interpreters")
+
+
 @dataclass(frozen=True)
 class RhythmicConfig:
-    """Hyper-parameters (paper values where it gives them; sizes reduced for a CPU-sized model).
+    """Hyper-parameters; the defaults are the paper's values (§7.1.2) where it gives them.
 
     Attributes
     ----------
@@ -83,19 +91,36 @@ class RhythmicConfig:
         Leading acoustic columns that are log-mel bands (the audio encoder's input; timing features are unused).
     fps, min_beat_gap_s, max_beat_gap_s : float
         Frame rate and D_m, D_M (§4.2.1); ``K = round(D_M * fps)``.
-    window_frames : int
-        Trainer window length (frames): it is cut into beat clips inside the loss.
+    audio_tsm : bool
+        Audio blocks from time-scaled audio with the log-mel recomputed (§4.2.2); False, or a take without its
+        recording, resamples the log-mel frames instead.
+    audio_sr, mel_window_s : int, float
+        Sample rate (Hz) and mel window (s) of that analysis: the speech front-end's (``SpeechConfig``) values.
+    window_blocks : int
+        Consecutive blocks per training window (8, about 4 s: "the generator synthesizes 4 seconds of gestures at a
+        time"); the first and last serve as context only.
+    stages : {"sequential", "joint"}
+        Train the four :data:`STAGES` one after another (the paper) or all at once.
+    stage_weights : tuple of 4 float
+        Shares of the epochs given to each stage when sequential (each stage gets at least one epoch).
+    stage_ends : tuple of int
+        Epoch (exclusive, 0-based) at which each stage ends; filled in by :meth:`RhythmicSpec.plan_epochs` from
+        ``--epochs`` and kept in the checkpoint (a resumed run with more epochs trains the interpreters longer).
     audio_encoder : {"conv", "mel"}
-        :data:`AUDIO_ENCODERS` entry; ``audio_channels``, ``audio_layers``, ``low_layer`` (1-based) configure it.
+        :data:`AUDIO_ENCODERS` entry; ``audio_channels``, ``audio_layers`` (vq-wav2vec: 8), ``low_layer``
+        (1-based; the paper's a_low is layer 2) configure it.
     contrast_dim, temperature : int, float
         Projection size and τ of eq. 1.
     lexicon_size, lexeme_dim, vq_channels : int
-        Number of lexemes (paper: 50), lexeme vector size d_s, VQ-VAE conv channels.
+        Number of lexemes N_s (paper: 50), lexeme vector size d_s (192), VQ-VAE conv channels.
     motion_feat_dim, audio_feat_dim, style_dim, pe_dim, hidden : int
-        d_m~, d_a~, d_z, d_P, MLP/LSTM width.
+        d_m~ (128), d_a~ (128), d_z (32), d_P (32), and the MLP/LSTM width, which the paper does not give (128, like
+        its other widths; 256 costs a third of the CPU speed: 18x instead of 27x real time).
     latent_groups, latent_classes, latent_group_dim : int
         H groups of C-way Gumbel-softmax categories (paper: H = 64, C = 128) and each category vector's size.
     gumbel_tau : float
+    lr : float
+        Adam learning rate (3e-4, §7.1.2), used when ``robogest train --lr`` is not given.
     w_rec, w_perc, w_lexeme, w_z, w_alpha, w_beta : float
         Loss weights of eq. 9 and eq. 3.
     silent_augment : float
@@ -119,25 +144,32 @@ class RhythmicConfig:
     fps: float = 20.0
     min_beat_gap_s: float = 0.2
     max_beat_gap_s: float = 0.5
-    window_frames: int = 60
+    audio_tsm: bool = True
+    audio_sr: int = 16000
+    mel_window_s: float = 0.1
+    window_blocks: int = 8
+    stages: str = "sequential"
+    stage_weights: tuple = (1.0, 2.0, 4.0, 3.0)
+    stage_ends: tuple = ()
     audio_encoder: str = "conv"
-    audio_channels: int = 64
-    audio_layers: int = 4
+    audio_channels: int = 128
+    audio_layers: int = 8
     low_layer: int = 2
-    contrast_dim: int = 32
+    contrast_dim: int = 64
     temperature: float = 0.1
     lexicon_size: int = 50
-    lexeme_dim: int = 32
-    vq_channels: int = 64
-    motion_feat_dim: int = 32
-    audio_feat_dim: int = 32
-    style_dim: int = 8
-    pe_dim: int = 8
+    lexeme_dim: int = 192
+    vq_channels: int = 128
+    motion_feat_dim: int = 128
+    audio_feat_dim: int = 128
+    style_dim: int = 32
+    pe_dim: int = 32
     hidden: int = 128
-    latent_groups: int = 8
-    latent_classes: int = 32
+    latent_groups: int = 64
+    latent_classes: int = 128
     latent_group_dim: int = 8
     gumbel_tau: float = 1.0
+    lr: float = 3e-4
     w_rec: float = 1.0
     w_perc: float = 0.5
     w_lexeme: float = 0.2
@@ -150,18 +182,44 @@ class RhythmicConfig:
     lexeme_temperature: float = 1.0
     smooth_kernel: int = 5
 
+    def __post_init__(self) -> None:
+        if self.stages not in ("sequential", "joint"):
+            raise InputError(f"rhythmic option stages={self.stages!r}: choose 'sequential' or 'joint'")
+        if len(self.stage_weights) != len(STAGES) or min(self.stage_weights) < 0 or min(self.stage_weights[1:]) <= 0:
+            raise InputError(
+                f"rhythmic option stage_weights={list(self.stage_weights)}: needs {len(STAGES)} numbers, the encoder's "
+                ">= 0 (0 skips its pre-training) and the others > 0"
+            )
+        if self.window_blocks < 3:
+            raise InputError("rhythmic option window_blocks must be >= 3 (a block and its two neighbours)")
+
     @property
     def block(self) -> int:
         return block_frames(self.max_beat_gap_s, self.fps)
 
+    def stage_at(self, epoch: int) -> str | None:
+        """The stage trained at ``epoch`` (0-based); None: all at once (joint, or no plan yet)."""
+        if self.stages == "joint" or not self.stage_ends:
+            return None
+        for name, end in zip(STAGES, self.stage_ends, strict=True):
+            if epoch < end:
+                return name
+        return STAGES[-1]
+
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> RhythmicConfig:
+        d = dict(d)
+        for k in ("stage_weights", "stage_ends"):
+            if k in d:
+                d[k] = tuple(d[k])
         return cls(**d)
 
 
 # --------------------------------------------------------------------------------------------------- audio encoder
 class ConvAudioEncoder(nn.Module):
     """Stack of ``audio_layers`` 1-D convolutions (kernel 3) over the log-mel block; every layer's output is kept."""
+
+    trainable = True
 
     def __init__(self, c: RhythmicConfig) -> None:
         super().__init__()
@@ -184,6 +242,8 @@ class ConvAudioEncoder(nn.Module):
 class MelAudioEncoder(nn.Module):
     """Parameter-free stand-in: ``a_low = a_high =`` the standardised log-mel (no contrastive pre-training)."""
 
+    trainable = False
+
     def __init__(self, c: RhythmicConfig) -> None:
         super().__init__()
         self.layer_dims = [c.n_mels]
@@ -192,7 +252,8 @@ class MelAudioEncoder(nn.Module):
         return [mel]
 
 
-#: Audio encoders by name: ``cls(config)`` with ``layer_dims`` and ``forward(mel) -> [per-layer (B, K, C_l)]``.
+#: Audio encoders by name: ``cls(config)`` with ``layer_dims``, ``trainable`` (has a pre-training stage) and
+#: ``forward(mel) -> [per-layer (B, K, C_l)]``.
 AUDIO_ENCODERS: dict[str, type] = {"conv": ConvAudioEncoder, "mel": MelAudioEncoder}
 
 
@@ -338,9 +399,11 @@ class BlockGenerator(nn.Module):
         logits = self.mlp(cond).view(b, k, c.latent_groups, c.latent_classes)  # (B, K, H * C) -> (B, K, H, C)
         if self.training:
             w = F.gumbel_softmax(logits, tau=c.gumbel_tau, hard=True, dim=-1)  # one-hot forward, as at run time
-        else:
-            w = F.one_hot(logits.argmax(-1), c.latent_classes).to(logits.dtype)  # most likely category
-        q = torch.einsum("bkhc,hcd->bkhd", w, self.latent).reshape(b, k, -1)  # (B, K, H, d_g) -> (B, K, H * d_g)
+            q = torch.einsum("bkhc,hcd->bkhd", w, self.latent)  # (B, K, H, d_g)
+        else:  # the most likely category's vector: a gather, not a product with a one-hot
+            groups = torch.arange(c.latent_groups, device=logits.device)
+            q = self.latent[groups, logits.argmax(-1)]  # (H,), (B, K, H) -> (B, K, H, d_g)
+        q = q.reshape(b, k, -1)  # (B, K, H, d_g) -> (B, K, H * d_g)
         h, _ = self.lstm(torch.cat([q, m_feat], dim=2))  # (B, K, hidden)
         return self.out(h)  # (B, K, P)
 
@@ -373,11 +436,6 @@ class Interpreter(nn.Module):
 
 
 # --------------------------------------------------------------------------------------------------- beat rhythm
-#: Extra frame channels appended by :meth:`RhythmicSpec.make_windows` after mel + timing + text: a clip starts at
-#: this frame (beat of the whole take), the frame is quiet, the take has words (constant per take).
-N_RHYTHM = 3
-
-
 def take_rhythm(
     mel: np.ndarray, mel_db: np.ndarray, text: np.ndarray, c: RhythmicConfig
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -412,25 +470,79 @@ def word_frames(text: np.ndarray) -> np.ndarray:
     return ~np.all(text <= -TEXT_SCALE + 1e-3, axis=1)
 
 
-def rhythm_channels(mel: np.ndarray, mel_db: np.ndarray, text: np.ndarray, c: RhythmicConfig) -> np.ndarray:
-    """The :data:`N_RHYTHM` frame channels ``(T, 3)`` of a whole take (see :meth:`RhythmicSpec.make_windows`)."""
-    bounds, _ = take_rhythm(mel, mel_db, text, c)
-    out = np.zeros((mel.shape[0], N_RHYTHM), np.float32)
-    out[bounds[:-1], 0] = 1.0
-    out[:, 1] = quiet_frames(mel_db)
-    out[:, 2] = float(word_frames(text).any())
-    return out
+@dataclass
+class TakeBlocks:
+    """A whole take or speech as beat blocks (numpy), made by :func:`take_blocks`.
+
+    Attributes
+    ----------
+    bounds : ndarray [shape=(C + 1,)], int
+        Clip boundaries, frames.
+    silent : ndarray [shape=(C,)], bool
+        Silent blocks (§6.4.1).
+    mel : ndarray [shape=(C, K, n_mels)], float32
+        Standardised log-mel of the time-scaled audio.
+    text : ndarray [shape=(C, K, D)], float32
+        Raw text features, resampled.
+    poses : ndarray [shape=(C, K, P)], float32, optional
+        Normalised exponential maps, resampled (training takes only).
+    """
+
+    bounds: np.ndarray
+    silent: np.ndarray
+    mel: np.ndarray
+    text: np.ndarray
+    poses: np.ndarray | None = None
+
+
+def take_blocks(
+    mel_db: np.ndarray,
+    text: np.ndarray,
+    norm: Normalization,
+    c: RhythmicConfig,
+    audio: np.ndarray | None = None,
+    poses: np.ndarray | None = None,
+) -> TakeBlocks:
+    """Cut a whole take or speech at its beats and normalise every clip to a block (§4.2): the one path from
+    frames to blocks for training and inference.
+
+    Parameters
+    ----------
+    mel_db : ndarray [shape=(T, n_mels)], dB
+        Front-end log-mel.
+    text : ndarray [shape=(T, D)]
+        Raw text features.
+    norm : Normalization
+        Training statistics (its first ``n_mels`` acoustic columns standardise the log-mel).
+    c : RhythmicConfig
+    audio : ndarray [shape=(N,)], float32, optional
+        The samples at ``c.audio_sr`` Hz, frame ``t`` at sample ``t * audio_sr / fps``: with ``c.audio_tsm`` the
+        audio blocks are time-scaled audio re-analysed (:func:`robogest.data.blocks.tsm_mel_blocks`); without it the
+        log-mel frames are resampled.
+    poses : ndarray [shape=(T, P)], radians, optional
+        Exponential maps (a training take), returned normalised and in blocks.
+    """
+    m = c.n_mels
+    mean, std = norm.acoustic_mean[:m], norm.acoustic_std[:m]
+    mel = ((mel_db - mean) / std).astype(np.float32)  # (T, M) standardised
+    bounds, silent = take_rhythm(mel, mel_db, text, c)
+    k = c.block
+    if audio is not None and c.audio_tsm:
+        mel_blocks = (tsm_mel_blocks(audio, c.audio_sr, bounds, c.fps, k, m, c.mel_window_s) - mean) / std
+    else:
+        mel_blocks = normalize_clips(mel, bounds, k)
+    pose_blocks = normalize_clips(norm.pose(poses), bounds, k) if poses is not None else None
+    return TakeBlocks(bounds, silent, mel_blocks.astype(np.float32), normalize_clips(text, bounds, k), pose_blocks)
 
 
 # --------------------------------------------------------------------------------------------------- whole model
 @dataclass
 class Blocks:
-    """Beat blocks of a batch of windows (tensors) and the training samples among them.
+    """The blocks of a batch of training windows (tensors) and the training samples among them.
 
-    ``mel`` ``(N, K, n_mels)``, ``text`` ``(N, K, D)``, ``poses`` ``(N, K, P)``, ``empty`` ``(N,)`` bool (silent
-    block: :func:`~robogest.data.blocks.silent_blocks`); ``prev``, ``cur``, ``nxt`` ``(S,)`` block indices of the
-    samples (blocks with both neighbours in their window, so the partial first and last clips of a window only serve
-    as context).
+    ``mel`` ``(N, K, n_mels)``, ``text`` ``(N, K, D)`` (scaled: silence = -1), ``poses`` ``(N, K, P)``, ``empty``
+    ``(N,)`` bool (silent block: :func:`~robogest.data.blocks.silent_blocks`); ``prev``, ``cur``, ``nxt`` ``(S,)``
+    block indices of the samples (every block but a window's first and last, which serve as context).
     """
 
     mel: Any
@@ -513,61 +625,37 @@ class RhythmicNet(nn.Module):
 
     # ---- training
     def segment(self, speech, poses) -> Blocks:
-        """Cut trainer windows ``(B, L, F)``, ``(B, L, P)`` into beat blocks.
-
-        The windows (from :meth:`RhythmicSpec.make_windows`) carry the :data:`N_RHYTHM` channels computed on their
-        whole take (clip starts, quiet frames, take has words): the window's clips are the take's clips, cut at
-        the window's edges, and silent blocks follow :func:`~robogest.data.blocks.silent_blocks` with the take's
-        word status.
-        """
+        """Trainer windows ``(B, W * K, M + D + 1)``, ``(B, W * K, P)`` from :meth:`RhythmicSpec.make_windows`
+        (``W`` consecutive blocks laid end to end; the last input channel flags silent blocks) -> blocks."""
         c = self.config
+        k, m, d = c.block, c.n_mels, c.n_text
         b, length = speech.shape[:2]
-        n_in = c.n_acoustic + c.n_text
-        if speech.shape[2] != n_in + N_RHYTHM:
-            raise InputError(f"rhythmic windows have {speech.shape[2]} features, expected {n_in + N_RHYTHM}")
-        text_np = speech[..., c.n_acoustic : n_in].detach().cpu().numpy()
-        rhythm_np = speech[..., n_in:].detach().cpu().numpy()
-        idx0, idx1, ws, empty, prev, cur, nxt = [], [], [], [], [], [], []
-        n_blocks = 0
-        for w in range(b):
-            starts = np.flatnonzero(rhythm_np[w, 1:, 0] > 0.5) + 1
-            bounds = np.concatenate([[0], starts, [length]]).astype(int)
-            quiet = rhythm_np[w, :, 1] > 0.5
-            has_words = bool(rhythm_np[w, 0, 2] > 0.5)
-            sil = silent_blocks(bounds, word_frames(text_np[w]), quiet, c.quiet_share, has_words)
-            i0, i1, wt = block_index(bounds, c.block, offset=w * length)
-            empty.append(sil)
-            nb = i0.shape[0]
-            for j in range(1, nb - 1):
-                prev.append(n_blocks + j - 1)
-                cur.append(n_blocks + j)
-                nxt.append(n_blocks + j + 1)
-            idx0.append(i0)
-            idx1.append(i1)
-            ws.append(wt)
-            n_blocks += nb
-        dev = speech.device
-        i0 = torch.from_numpy(np.concatenate(idx0)).to(dev)  # (N, K)
-        i1 = torch.from_numpy(np.concatenate(idx1)).to(dev)
-        wt = torch.from_numpy(np.concatenate(ws)).to(dev)[..., None]  # (N, K, 1)
-        x = torch.cat([speech[..., :n_in], poses], dim=2).reshape(b * length, -1)  # (B * L, F + P)
-        blk = (1 - wt) * x[i0] + wt * x[i1]  # (N, K, F + P)
-
-        def t(v):
-            return torch.as_tensor(np.asarray(v, dtype=np.int64), device=dev)
-
+        if speech.shape[2] != m + d + 1 or length % k:
+            raise InputError(
+                f"rhythmic windows are {tuple(speech.shape)}, expected (B, W * {k}, {m + d + 1}); "
+                "make them with RhythmicSpec.make_windows"
+            )
+        w = length // k
+        x = speech.reshape(b * w, k, -1)  # (B, W * K, F) -> (B * W, K, F)
+        j = torch.arange(1, w - 1, device=speech.device)
+        base = (torch.arange(b, device=speech.device) * w)[:, None]  # (B, 1)
+        cur = (base + j[None]).reshape(-1)  # (B * (W - 2),)
         return Blocks(
-            mel=blk[..., : c.n_mels],
-            text=blk[..., c.n_acoustic : n_in] / TEXT_SCALE,
-            poses=blk[..., n_in:],
-            empty=torch.from_numpy(np.concatenate(empty)).to(dev),
-            prev=t(prev),
-            cur=t(cur),
-            nxt=t(nxt),
+            mel=x[..., :m],
+            text=x[..., m : m + d] / TEXT_SCALE,
+            poses=poses.reshape(b * w, k, -1),  # (B, W * K, P) -> (B * W, K, P)
+            empty=x[:, 0, -1] > 0.5,
+            prev=cur - 1,
+            cur=cur,
+            nxt=cur + 1,
         )
 
     def forward(self, speech, poses, epoch: int = 0):
-        """Training loss of trainer windows ``(B, L, F)``, ``(B, L, P)``: sum of the four gradient-isolated stages.
+        """Loss of trainer windows (see :meth:`segment`) at ``epoch``.
+
+        In training mode only the stage of ``epoch`` (:meth:`RhythmicConfig.stage_at`) is computed and learns, the
+        earlier ones frozen; in joint training, and in evaluation mode (the validation loss), it is the sum of all
+        four stages' objectives, each gradient-isolated:
 
         1. audio encoder: contrastive eq. 1 (its outputs are detached downstream);
         2. lexicon: VQ-VAE eq. 3 (lexemes detached downstream; the perceptual/lexeme losses use its encoder
@@ -577,39 +665,80 @@ class RhythmicNet(nn.Module):
            with and without text, on detached inputs.
         """
         c = self.config
+        stage = c.stage_at(epoch) if self.training else None
+        active = STAGES if stage is None else (stage,)
         bl = self.segment(speech, poses)
-        words = bl.text.max(dim=2).values > -1.0 + 1e-3  # (N, K) frames inside words (text scaled: silence = -1)
+        zero = speech.new_zeros(())
+        parts: dict[str, Any] = {}
 
-        a_low, a_high, layers = self.audio_features(bl.mel)
-        l_cont = self.contrastive_loss(bl.text, layers, words)
-        a_low, a_high = a_low.detach(), a_high.detach()
+        if "encoder" in active:
+            a_low, a_high, layers = self.audio_features(bl.mel)
+            words = bl.text.max(dim=2).values > -1.0 + 1e-3  # (N, K) frames inside words
+            parts["contrastive"] = self.contrastive_loss(bl.text, layers, words)
+            a_low, a_high = a_low.detach(), a_high.detach()
+        elif "generator" in active or "interpreters" in active:
+            with torch.no_grad():
+                a_low, a_high, _ = self.audio_features(bl.mel)
 
-        l_vq, rec_err, idx = self.vq(bl.poses)
-        s_all = self.vq.codebook.detach()[idx]  # (N, d_s)
-        if self.training:
+        if "lexicon" in active:
+            parts["vq"], rec_err, idx = self.vq(bl.poses)
+            parts["vq_rec"] = rec_err
+        else:
+            with torch.no_grad():
+                idx = self.vq.quantize(self.vq.encode(bl.poses))
+        if self.training and stage != "encoder":  # silent-lexeme statistics of the current lexicon
             with torch.no_grad():
                 n_s = c.lexicon_size
                 self.lex_total.mul_(0.98).add_(torch.bincount(idx, minlength=n_s).float())
                 self.lex_empty.mul_(0.98).add_(torch.bincount(idx[bl.empty], minlength=n_s).float())
+        s_all = self.vq.codebook.detach()[idx]  # (N, d_s)
+        p, i, n = bl.prev, bl.cur, bl.nxt
+        samples = i.numel() > 0
 
-        zero = speech.new_zeros(())
-        if bl.cur.numel() == 0:
-            self.last_parts = {"contrastive": float(l_cont.detach()), "vq": float(l_vq.detach())}
-            return l_cont + l_vq
+        if "generator" in active and samples:
+            parts.update(self.generator_losses(bl, a_low, s_all, idx))
+        if "interpreters" in active and samples:
+            a3 = torch.cat([a_low[p], a_low[i], a_low[n]], dim=2)  # (S, K, 3 d_a)
+            h3 = torch.cat([a_high[p], a_high[i], a_high[n]], dim=2)  # (S, K, 3 d_A)
+            lex_t = idx[i].clone()  # targets: lexeme index, silent blocks forced to the nearest silent lexeme
+            forced = self.nearest_silent(s_all[i])
+            lex_t = torch.where(bl.empty[i] & (forced >= 0), forced, lex_t)
+            with torch.no_grad():
+                z_t = self.gen.style_code(bl.poses[i])
+                z_prev = self.gen.style_code(bl.poses[p])
+            ctx_z = torch.cat([z_prev, s_all[i]], dim=1)
+            text_i = bl.text[i]
+            l_int = zero
+            for lex_net, sty_net in (
+                (self.lex_interp, self.style_interp),
+                (self.lex_interp_audio, self.style_interp_audio),
+            ):
+                l_int = l_int + F.cross_entropy(lex_net(h3, text_i, s_all[p]), lex_t)
+                l_int = l_int + F.mse_loss(sty_net(a3, text_i, ctx_z), z_t)
+            parts["interp"] = l_int
+
+        weights = {"vq_rec": 0.0, "rec": 0.0, "perc": 0.0, "lexeme": 0.0, "kl": 0.0}
+        total = sum((parts[k] * weights.get(k, 1.0) for k in parts), zero)
+        self.last_parts = {k: float(v.detach()) for k, v in parts.items()}
+        if self.training and not total.requires_grad:  # nothing to learn in this batch (e.g. no words to contrast)
+            total = total + speech.new_zeros((), requires_grad=True)
+        return total
+
+    def generator_losses(self, bl: Blocks, a_low, s_all, idx) -> dict[str, Any]:
+        """Eq. 9 (``"gen"``, with its parts for the log) on teacher-forced blocks plus inserted silent blocks:
+        after empty-word blocks, noise audio, z = 0, the nearest silent lexeme, the previous block's last pose held
+        still (§6.4.1)."""
+        c = self.config
         p, i, n = bl.prev, bl.cur, bl.nxt
         a3 = torch.cat([a_low[p], a_low[i], a_low[n]], dim=2)  # (S, K, 3 d_a)
-        h3 = torch.cat([a_high[p], a_high[i], a_high[n]], dim=2)  # (S, K, 3 d_A)
         prev_m, target = bl.poses[p], bl.poses[i]
         z = self.gen.style_code(target)  # (S, d_z)
         s = s_all[i]
-
-        # silent-block augmentation (§6.4.1): after empty-word blocks, noise audio, z = 0, nearest silent lexeme,
-        # the previous block's last pose held still
         after_empty = torch.nonzero(bl.empty[p]).flatten()
         silent_of_prev = self.nearest_silent(s_all[p])
         n_aug = round(c.silent_augment / max(1.0 - c.silent_augment, 1e-6) * i.numel())
         if self.training and after_empty.numel() and n_aug and bool((silent_of_prev >= 0).all()):
-            pick = after_empty[torch.randint(0, after_empty.numel(), (max(1, n_aug),), device=speech.device)]
+            pick = after_empty[torch.randint(0, after_empty.numel(), (max(1, n_aug),), device=a_low.device)]
             pp = p[pick]
             prev_m = torch.cat([prev_m, bl.poses[pp]])
             a3 = torch.cat([a3, a_low[pp].repeat(1, 1, 3)])
@@ -621,44 +750,14 @@ class RhythmicNet(nn.Module):
         gen = self.gen(prev_m, a3, s, z)  # (S', K, P)
         l_rec = F.mse_loss(gen, target)
         l_perc = F.mse_loss(self.vq.encode(gen, frozen=True), self.vq.encode(target, frozen=True).detach())
-        perm = torch.randperm(n_real, device=speech.device)  # eq. 12: same lexeme, another block's other inputs
+        perm = torch.randperm(n_real, device=a_low.device)  # eq. 12: same lexeme, another block's other inputs
         other = self.gen(prev_m[:n_real][perm], a3[:n_real][perm], s[:n_real], z[:n_real][perm])
         l_lex = F.mse_loss(self.vq.encode(other, frozen=True), s[:n_real])
         zr = z[:n_real]
         mu, var = zr.mean(0), zr.var(0, unbiased=False) + 1e-6
         l_z = 0.5 * (mu**2 + var - var.log() - 1.0).mean()  # eq. 14 on the batch statistics
         l_gen = c.w_rec * l_rec + c.w_perc * l_perc + c.w_lexeme * l_lex + c.w_z * l_z
-
-        # interpreters (§6.1-6.4), targets: lexeme index, silent blocks forced to the nearest silent lexeme
-        lex_t = idx[i].clone()
-        sil = bl.empty[i]
-        forced = self.nearest_silent(s_all[i])
-        lex_t = torch.where(sil & (forced >= 0), forced, lex_t)
-        s_prev = s_all[p]
-        z_t = self.gen.style_code(bl.poses[i]).detach()
-        z_prev = self.gen.style_code(bl.poses[p]).detach()
-        ctx_z = torch.cat([z_prev, s_all[i]], dim=1)
-        text_i = bl.text[i]
-        l_int = zero
-        for lex_net, sty_net in (
-            (self.lex_interp, self.style_interp),
-            (self.lex_interp_audio, self.style_interp_audio),
-        ):
-            l_int = l_int + F.cross_entropy(lex_net(h3, text_i, s_prev), lex_t)
-            l_int = l_int + F.mse_loss(sty_net(a3[:n_real], text_i, ctx_z), z_t)
-        self.last_parts = {
-            "contrastive": float(l_cont.detach()), "vq": float(l_vq.detach()), "vq_rec": float(rec_err),
-            "rec": float(l_rec.detach()),
-            "perc": float(l_perc.detach()), "lexeme": float(l_lex.detach()), "kl": float(l_z.detach()),
-            "interp": float(l_int.detach()),
-        }  # fmt: skip
-        return l_cont + l_vq + l_gen + l_int
-
-
-def _check_overrides(overrides: dict[str, Any]) -> None:
-    bad = set(overrides) - {f.name for f in dataclasses.fields(RhythmicConfig)}
-    if bad:
-        raise InputError(f"unknown rhythmic option(s): {', '.join(sorted(bad))}")
+        return {"gen": l_gen, "rec": l_rec, "perc": l_perc, "lexeme": l_lex, "kl": l_z}
 
 
 class RhythmicSpec:
@@ -667,33 +766,98 @@ class RhythmicSpec:
     name = "rhythmic"
 
     def make_config(self, n_acoustic: int, n_text: int, n_pose: int, overrides: dict[str, Any]) -> RhythmicConfig:
-        _check_overrides(overrides)
-        return RhythmicConfig.from_dict({**overrides, "n_acoustic": n_acoustic, "n_text": n_text, "n_pose": n_pose})
+        front = FeatureConfig().speech_config()  # the trainer's feature front-end: its rate and mel analysis
+        fixed = {"n_acoustic": n_acoustic, "n_text": n_text, "n_pose": n_pose, "n_mels": front.n_mels,
+                 "audio_sr": front.sr, "mel_window_s": front.mel_window_s, "fps": front.fps}  # fmt: skip
+        return config_with_overrides(RhythmicConfig, "rhythmic", overrides, **fixed)
 
     def config_from_dict(self, d: dict[str, Any]) -> RhythmicConfig:
         return RhythmicConfig.from_dict(d)
+
+    def plan_epochs(self, config: RhythmicConfig, epochs: int) -> RhythmicConfig:
+        """Give each stage its share of ``epochs`` (at least one each) when training sequentially.
+
+        Raises
+        ------
+        InputError
+            Fewer epochs than stages.
+        """
+        if config.stages == "joint":
+            return config
+        trainable = AUDIO_ENCODERS[config.audio_encoder].trainable
+        present = [
+            w > 0 and (name != "encoder" or trainable) for name, w in zip(STAGES, config.stage_weights, strict=True)
+        ]
+        names = [name for name, p in zip(STAGES, present, strict=True) if p]
+        if epochs < len(names):
+            raise InputError(
+                f"the rhythmic model trains its stages ({', '.join(names)}) one after another and needs --epochs >= "
+                f"{len(names)} (got {epochs}); or train them together with --set stages=joint"
+            )
+        weights = np.array([w if p else 0.0 for w, p in zip(config.stage_weights, present, strict=True)])
+        share = (epochs - len(names)) * weights / weights.sum()  # the epochs beyond one per stage, by weight
+        alloc = np.floor(share).astype(int) + np.asarray(present, int)
+        for j in np.argsort(-(share - np.floor(share)))[: epochs - int(alloc.sum())]:  # largest remainders
+            alloc[j] += 1
+        return dataclasses.replace(config, stage_ends=tuple(int(e) for e in np.cumsum(alloc)))
+
+    def first_best_epoch(self, config: RhythmicConfig) -> int:
+        """``best.pt`` is chosen among the epochs of the last stage, when every part has been trained."""
+        return config.stage_ends[-2] if config.stage_at(0) is not None else 0
+
+    def stage_name(self, epoch: int, config: RhythmicConfig) -> str:
+        return config.stage_at(epoch) or "all stages"
 
     def build(self, config: RhythmicConfig) -> RhythmicNet:
         return RhythmicNet(config)
 
     def sequence_length(self, config: RhythmicConfig) -> int:
-        return config.window_frames
+        return config.window_blocks * config.block
 
     def make_windows(self, takes, norm, config: RhythmicConfig, length: int, stride: int):
-        """:func:`robogest.data.prep.make_windows` plus the :data:`N_RHYTHM` channels of each whole take.
+        """Windows of ``length // K`` consecutive beat blocks of each whole take (:func:`take_blocks`).
 
-        Beats and quiet frames are found once on the whole take (as at run time on the whole speech), so a
-        window's clips are the take's clips and not those of the window taken alone.
+        Beats and silent blocks are found once on the whole take, as at run time on the whole speech. The audio
+        blocks come from each take's recording, time-scaled and re-analysed (a take without ``audio_path``: from
+        its log-mel frames). Consecutive windows start about ``stride`` frames apart (``stride`` over the take's
+        mean clip length, in blocks).
+
+        Returns
+        -------
+        x : ndarray [shape=(N, W * K, n_mels + D + 1)], float32
+            Standardised time-scaled log-mel, raw text, silent-block flag; block ``w`` is frames ``[w K, (w + 1) K)``.
+        y : ndarray [shape=(N, W * K, P)], float32
+            Normalised poses.
+        take_index : ndarray [shape=(N,)], int
         """
+        k, m = config.block, config.n_mels
+        w = length // k
 
-        def take_arrays(t) -> tuple[np.ndarray, np.ndarray]:
-            acoustic = norm.acoustic(t.acoustic)
-            rhythm = rhythm_channels(acoustic[:, : config.n_mels], t.acoustic[:, : config.n_mels], t.text, config)
-            x = np.concatenate([acoustic, t.text, rhythm], axis=1)  # (T, 69 + D + 3)
-            return x, norm.pose(t.poses)  # (T, P)
+        def per_take():
+            for i, t in enumerate(takes):
+                audio = t.read_audio(config.audio_sr) if config.audio_tsm and t.audio_path is not None else None
+                tb = take_blocks(t.acoustic[:, :m], t.text, norm, config, audio, t.poses)
+                flag = np.broadcast_to(tb.silent[:, None, None], (*tb.mel.shape[:2], 1)).astype(np.float32)
+                x = np.concatenate([tb.mel, tb.text, flag], axis=2)  # (C, K, F)
+                n_c = x.shape[0]
+                if n_c >= w:
+                    step = max(1, round(stride * n_c / t.n_frames))  # frames -> blocks
+                    yield i, x.reshape(n_c, -1), tb.poses.reshape(n_c, -1), step  # (C, K * F), (C, K * P)
 
-        per_take = ((i, *take_arrays(t)) for i, t in enumerate(takes) if t.n_frames >= length)
-        return slice_windows(per_take, length, stride, config.n_acoustic + config.n_text + N_RHYTHM, config.n_pose)
+        xs, ys, idx = [], [], []
+        for i, x, y, step in per_take():
+            xw, yw, _ = slice_windows([(i, x, y)], w, step, x.shape[1], y.shape[1])  # (N_i, W, K * F)
+            xs.append(xw.reshape(xw.shape[0], w * k, -1))  # (N_i, W, K * F) -> (N_i, W * K, F)
+            ys.append(yw.reshape(yw.shape[0], w * k, -1))
+            idx.append(np.full(xw.shape[0], i))
+        if not xs:
+            f = m + config.n_text + 1
+            return (
+                np.zeros((0, w * k, f), np.float32),
+                np.zeros((0, w * k, config.n_pose), np.float32),
+                np.zeros(0, int),
+            )
+        return np.concatenate(xs), np.concatenate(ys), np.concatenate(idx)
 
     def loss(self, model, speech, poses, epoch: int, config: RhythmicConfig):
         return model(speech, poses, epoch)  # through the (possibly DDP) wrapper's forward
@@ -767,14 +931,17 @@ class RhythmicGenerator(CheckpointGenerator):
         k, t_frames = c.block, speech.n_frames
         acoustic, text = speech_inputs(speech, self.features, self.encoder)  # (T, 69), (T, D)
         with_text = len(speech.words) > 0
-        mel = self.norm.acoustic(acoustic)[:, : c.n_mels]  # (T, M) standardised, as in training
-        bounds, silent = take_rhythm(mel, acoustic[:, : c.n_mels], text, c)  # (C + 1,), (C,)
+        audio = None
+        if c.audio_tsm:
+            from robogest.speech.audio import resample
+
+            audio = resample(speech.audio, speech.sr, c.audio_sr)
+        tb = take_blocks(acoustic[:, : c.n_mels], text, self.norm, c, audio)
+        bounds, silent = tb.bounds, tb.silent  # (C + 1,), (C,)
         n_b = len(bounds) - 1
         if n_b == 0 or t_frames == 0:
             return BlockPlan(bounds, np.zeros(0, int), np.zeros(0, bool), np.zeros((0, c.n_pose), np.float32))
-        x = np.concatenate([mel, text / TEXT_SCALE], axis=1)  # (T, M + D)
-        i0, i1, w = block_index(bounds, k)
-        blk = (1 - w)[..., None] * x[i0] + w[..., None] * x[i1]  # (C, K, M + D)
+        blk = np.concatenate([tb.mel, tb.text / TEXT_SCALE], axis=2)  # (C, K, M + D)
         dev = self.device
         with torch.inference_mode():
             b = torch.from_numpy(blk.astype(np.float32)).to(dev)

@@ -21,8 +21,12 @@ from robogest.data.prep import Normalization  # noqa: E402
 from robogest.motion.skeleton import CANONICAL  # noqa: E402
 from tests.learn.conftest import HASH16  # noqa: E402
 
-#: Reduced widths so the shared run fits the test budget on two CPU cores (the structure is the paper's).
-SMALL = {"hidden": 64, "audio_channels": 32, "vq_channels": 32, "lexicon_size": 12}
+#: Reduced widths so the shared run fits the test budget on two CPU cores (the structure is the paper's; its
+#: widths are the defaults, checked in test_paper_widths_are_the_defaults).
+SMALL = {
+    "hidden": 64, "audio_channels": 32, "audio_layers": 4, "vq_channels": 32, "lexicon_size": 12, "lexeme_dim": 32,
+    "motion_feat_dim": 32, "audio_feat_dim": 32, "style_dim": 8, "pe_dim": 8, "latent_groups": 8, "latent_classes": 32,
+}  # fmt: skip
 K = 10  # D_M = 0.5 s at 20 fps
 
 
@@ -39,7 +43,8 @@ def takes_and_speech(fixture_data, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def rhythmic_run(fixture_data, tmp_path_factory):
-    """Best checkpoint of one short overfit run of all stages on the fixture (no validation split)."""
+    """Best checkpoint of one short overfit run on the fixture (no validation split): the four stages one after
+    another (4 + 6 + 11 + 9 epochs)."""
     from robogest.learn.trainer import TrainConfig, train
 
     out = tmp_path_factory.mktemp("rrun")
@@ -92,21 +97,42 @@ def test_denormalised_length_is_exact_for_any_clips(seed):
     assert bounds[0] == 0 and bounds[-1] == 200 and np.all(np.diff(bounds) >= 1)
 
 
-def test_tsm_audio_blocks_match_feature_domain_scaling(takes_and_speech):
-    """Phase-vocoder TSM + fresh mel analysis ≈ time-scaling the log-mel frames (what training uses).
+def test_tsm_audio_blocks_reproduce_the_front_end_and_scale_like_it(takes_and_speech):
+    """Phase-vocoder TSM + fresh mel analysis (what training and inference use).
 
-    Both keep every partial in its mel band; their per-block spectra agree (correlation > 0.9), which is why the
-    trainer's frame windows can be normalised in the feature domain.
+    A clip of exactly K frames is not stretched (rate 1) and gives the front-end's own log-mel frames; other clips'
+    loud block spectra agree with time-scaling the log-mel frames (correlation > 0.9).
     """
     take, speech = takes_and_speech[0]
-    bounds = clip_bounds(speech.beats_s, take.n_frames, take.fps)[:15]
+    bounds = clip_bounds(speech.beats_s, take.n_frames, take.fps)
     tsm = tsm_mel_blocks(speech.audio, speech.sr, bounds, take.fps, K)
     feat = normalize_clips(speech.features.mel_db, bounds, K)
     assert tsm.shape == feat.shape == (len(bounds) - 1, K, 64)
+    exact = np.flatnonzero(np.diff(bounds) == K)
+    assert exact.size > 0
+    np.testing.assert_allclose(tsm[exact], feat[exact], atol=0.05)
     loud = feat.mean(axis=(1, 2)) > np.percentile(feat.mean(axis=(1, 2)), 50)
     a, b = tsm[loud].mean(axis=1), feat[loud].mean(axis=1)  # block spectra (n, 64)
     r = np.mean([np.corrcoef(x, y)[0, 1] for x, y in zip(a, b, strict=True)])
     assert r > 0.9, r
+
+
+def test_tsm_preserves_pitch_where_resampling_the_waveform_does_not():
+    """A 1 kHz tone in a 5-frame clip stretched to K = 10 frames stays in its mel band; stretching the same clip by
+    resampling the samples (no TSM) halves its pitch, which the test would see as another band."""
+    import librosa
+
+    from robogest.speech.features import log_mel_db
+
+    sr, fps = 16000, 20.0
+    t = np.arange(sr) / sr
+    tone = (0.5 * np.sin(2 * np.pi * 1000 * t)).astype(np.float32)
+    bounds = np.array([0, 5, 20])  # the first clip: 5 frames -> rate 4/9
+    tsm = tsm_mel_blocks(tone, sr, bounds, fps, K)
+    band = int(np.argmax(log_mel_db(tone, sr, 800, 1600, 64)[10]))
+    assert np.all(tsm[0, 2:-2].argmax(axis=1) == band)
+    slowed = librosa.resample(tone[: 5 * 800], orig_sr=sr, target_sr=sr * 9 / 4, res_type="polyphase")
+    assert int(np.argmax(log_mel_db(slowed, sr, 800, 1600, 64)[4])) < band - 3
 
 
 def _no_words(take):
@@ -125,9 +151,10 @@ def test_take_without_words_yields_silent_and_speech_blocks(takes_and_speech):
     cfg = RhythmicConfig(n_text=takes[0].text.shape[1], **SMALL)
     net = RhythmicNet(cfg)
     take, speech = takes_and_speech[0]
+    length = cfg.window_blocks * K
     for t in (take, _no_words(take)):
-        x, y, _ = SPEC.make_windows([t], norm, cfg, 60, 30)
-        assert x.shape[2] == cfg.n_acoustic + cfg.n_text + 3
+        x, y, _ = SPEC.make_windows([t], norm, cfg, length, 30)
+        assert x.shape[1:] == (length, cfg.n_mels + cfg.n_text + 1) and y.shape[1:] == (length, cfg.n_pose)
         empty = net.segment(torch.from_numpy(x), torch.from_numpy(y)).empty.numpy()
         assert empty.any() and not empty.all(), empty.mean()
     mel = norm.acoustic(take.acoustic)[:, :64]
@@ -225,25 +252,32 @@ def test_interpreter_picks_the_silent_lexeme_in_silent_blocks(rhythmic_run, take
 
 @pytest.mark.parametrize("with_words", [True, False])
 def test_inference_blocks_equal_training_blocks(rhythmic_run, takes_and_speech, with_words):
-    """A Speech is cut exactly where the trainer cuts the take of the same audio, and the same blocks are silent:
-    both use take_rhythm (frame_beats -> identify_beats) on the same standardised log-mel."""
+    """A Speech is cut exactly where the trainer cuts the take of the same audio, the same blocks are silent and
+    the audio blocks are the same time-scaled audio: both go through take_blocks (take_rhythm, tsm_mel_blocks)."""
     import dataclasses
 
-    from robogest.generators.rhythmic_learned import SPEC, RhythmicGenerator
+    from robogest.generators.rhythmic_learned import SPEC, RhythmicGenerator, take_blocks
 
     gen = RhythmicGenerator(rhythmic_run)
+    c = gen.config
     take, speech = takes_and_speech[1]
     np.testing.assert_allclose(take.acoustic[:, :64], speech.features.mel_db, atol=1e-4)
     if not with_words:
         take, speech = _no_words(take), dataclasses.replace(speech, words=())
     plan = gen.generate_blocks(speech)
-    x, y, _ = SPEC.make_windows([take], gen.norm, gen.config, take.n_frames, 1)  # one window: the whole take
-    starts = np.flatnonzero(x[0, :, -3] > 0.5)
-    np.testing.assert_array_equal(plan.bounds, np.r_[starts, take.n_frames])
+    train_blocks = take_blocks(take.acoustic[:, :64], take.text, gen.norm, c, take.read_audio(c.audio_sr), take.poses)
+    np.testing.assert_array_equal(plan.bounds, train_blocks.bounds)
     assert len(plan.bounds) > 10 and np.diff(plan.bounds).max() <= K + 1
-    blocks = gen.model.segment(torch.from_numpy(x), torch.from_numpy(y))
-    np.testing.assert_array_equal(plan.silent, blocks.empty.numpy())
+    np.testing.assert_array_equal(plan.silent, train_blocks.silent)
     assert plan.silent.any() and not plan.silent.all()
+    run_blocks = take_blocks(speech.features.mel_db, take.text, gen.norm, c, speech.audio)
+    np.testing.assert_allclose(run_blocks.mel, train_blocks.mel, atol=1e-3)
+    # the trainer's first window is the take's first W blocks laid end to end
+    x, y, _ = SPEC.make_windows([take], gen.norm, c, c.window_blocks * K, 10**6)
+    w = c.window_blocks
+    np.testing.assert_allclose(x[0, :, :64], train_blocks.mel[:w].reshape(w * K, 64), atol=1e-6)
+    np.testing.assert_allclose(y[0], train_blocks.poses[:w].reshape(w * K, -1), atol=1e-6)
+    np.testing.assert_array_equal(x[0, ::K, -1] > 0.5, train_blocks.silent[:w])
 
 
 def test_lexeme_entropy_and_pmb_from_generated_blocks(rhythmic_run, takes_and_speech):
@@ -262,9 +296,11 @@ def test_lexeme_entropy_and_pmb_from_generated_blocks(rhythmic_run, takes_and_sp
 
 
 def test_train_cli_and_generate_text_and_audio_only(fixture_data, tmp_path):
-    """`robogest train --model rhythmic` writes a checkpoint; it generates on text and audio-only speech with
-    exactly the speech's frames, the same for the same seed and different for another seed."""
+    """`robogest train --model rhythmic --set ...` (paper widths, one epoch per stage) writes a checkpoint; it
+    generates on text and audio-only speech with exactly the speech's frames, the same for the same seed and
+    different for another seed."""
     import dataclasses
+    import json
 
     from robogest.cli.main import main
     from robogest.generators.rhythmic_learned import RhythmicGenerator
@@ -273,13 +309,19 @@ def test_train_cli_and_generate_text_and_audio_only(fixture_data, tmp_path):
 
     out = tmp_path / "o"
     rc = main(
-        ["train", "--model", "rhythmic", "--data", str(fixture_data), "--out", str(out), "--epochs", "1",
+        ["train", "--model", "rhythmic", "--data", str(fixture_data), "--out", str(out), "--epochs", "4",
          "--device", "cpu", "--text-encoder", "hash-test", "--cache-dir", str(tmp_path / "c"),
-         "--window-stride", "30", "--val-fraction", "0"]
+         "--window-stride", "30", "--val-fraction", "0", "--set", "lexicon_size=20", "--set", "stages=sequential"]
     )  # fmt: skip
     assert rc == 0 and (out / "best.pt").is_file()
     ckpt = load_checkpoint(out / "best.pt")
-    assert ckpt["model_name"] == "rhythmic" and ckpt["model_config"]["lexicon_size"] == 50
+    mc = ckpt["model_config"]
+    assert ckpt["model_name"] == "rhythmic" and mc["lexicon_size"] == 20 and mc["latent_groups"] == 64
+    assert list(mc["stage_ends"]) == [1, 2, 3, 4]
+    history = json.loads((out / "history.json").read_text())
+    assert [h["stage"] for h in history] == ["encoder", "lexicon", "generator", "interpreters"]
+    assert ckpt["train_state"]["next_epoch"] == 4  # best.pt comes from the last stage, when every part is trained
+    assert ckpt["train_state"]["optimizers"]["optimizer"]["param_groups"][0]["lr"] == 3e-4  # the paper's, no --lr
     gen = RhythmicGenerator(out / "best.pt")
     speech = synthesize("Hello there, I am a robot ... and I wave.")
     for sp in (speech, dataclasses.replace(speech, words=())):
@@ -291,7 +333,7 @@ def test_train_cli_and_generate_text_and_audio_only(fixture_data, tmp_path):
         assert not np.array_equal(gen.generate(sp, seed=2).rotations, motion.rotations)
 
 
-def test_unknown_option_and_missing_checkpoint_are_input_errors(tmp_path):
+def test_bad_options_and_missing_checkpoint_are_input_errors(tmp_path):
     from robogest.errors import InputError
     from robogest.generators.rhythmic_learned import SPEC, RhythmicGenerator
 
@@ -301,3 +343,64 @@ def test_unknown_option_and_missing_checkpoint_are_input_errors(tmp_path):
         RhythmicGenerator()
     with pytest.raises(InputError, match="not found"):
         RhythmicGenerator(tmp_path / "x.pt")
+    with pytest.raises(InputError, match=r"lexicon_size='big': expected int"):
+        SPEC.make_config(69, 16, 51, {"lexicon_size": "big"})
+    with pytest.raises(InputError, match="stages='staged'"):
+        SPEC.make_config(69, 16, 51, {"stages": "staged"})
+
+
+def test_paper_widths_are_the_defaults():
+    """§5.3 and §7.1.2: H = 64, C = 128, d_m~ = d_a~ = 128, d_s = 192, d_z = d_P = 32, N_s = 50, lr 3e-4, D_M 0.5 s."""
+    from robogest.generators.rhythmic_learned import RhythmicConfig
+
+    c = RhythmicConfig()
+    got = (c.latent_groups, c.latent_classes, c.motion_feat_dim, c.audio_feat_dim, c.lexeme_dim, c.style_dim,
+           c.pe_dim, c.lexicon_size, c.lr, c.block, c.audio_layers, c.low_layer)  # fmt: skip
+    assert got == (64, 128, 128, 128, 192, 32, 32, 50, 3e-4, 10, 8, 2)
+
+
+def test_plan_epochs_gives_every_stage_its_share():
+    from robogest.errors import InputError
+    from robogest.generators.rhythmic_learned import SPEC
+
+    def ends(epochs, **kw):
+        return SPEC.plan_epochs(SPEC.make_config(69, 16, 51, kw), epochs).stage_ends
+
+    assert ends(4) == (1, 2, 3, 4)
+    assert ends(30) == (4, 10, 21, 30)  # weights 1:2:4:3 on the 26 epochs beyond one each, largest remainders
+    assert ends(20, audio_encoder="mel") == (0, 5, 13, 20)  # a parameter-free encoder has nothing to pre-train
+    c = SPEC.plan_epochs(SPEC.make_config(69, 16, 51, {}), 30)
+    assert [c.stage_at(e) for e in (0, 3, 4, 20, 21, 29, 35)] == [
+        "encoder", "encoder", "lexicon", "generator", "interpreters", "interpreters", "interpreters"
+    ]  # fmt: skip
+    assert SPEC.first_best_epoch(c) == 21
+    with pytest.raises(InputError, match=r"needs --epochs >= 4 \(got 3\).*stages=joint"):
+        ends(3)
+    joint = SPEC.plan_epochs(SPEC.make_config(69, 16, 51, {"stages": "joint"}), 1)
+    assert joint.stage_ends == () and joint.stage_at(0) is None and SPEC.first_best_epoch(joint) == 0
+
+
+def test_each_sequential_stage_trains_only_its_own_part(takes_and_speech):
+    """In training mode the loss at an epoch of stage X gives gradients to X's parameters and to nothing else."""
+    from robogest.generators.rhythmic_learned import SPEC, STAGES, RhythmicNet
+
+    takes = [t for t, _ in takes_and_speech]
+    norm = Normalization.fit(takes)
+    cfg = SPEC.plan_epochs(SPEC.make_config(69, takes[0].text.shape[1], 51, SMALL), 4)
+    x, y, _ = SPEC.make_windows(takes, norm, cfg, cfg.window_blocks * K, 20)
+    torch.manual_seed(0)
+    net = RhythmicNet(cfg).train()
+    owners = {
+        "encoder": ("audio.", "proj_t.", "proj_a."),
+        "lexicon": ("vq.",),
+        "generator": ("gen.",),
+        "interpreters": ("lex_interp", "style_interp"),
+    }
+    for epoch, stage in enumerate(STAGES):
+        if stage == "generator":  # the generator's silent-block augmentation needs the lexicon's statistics
+            net(torch.from_numpy(x[:16]), torch.from_numpy(y[:16]), epoch=1)
+        net.zero_grad(set_to_none=True)
+        net(torch.from_numpy(x[:16]), torch.from_numpy(y[:16]), epoch=epoch).backward()
+        with_grad = {n for n, p in net.named_parameters() if p.grad is not None and float(p.grad.abs().sum()) > 0}
+        assert with_grad, stage
+        assert all(n.startswith(owners[stage]) for n in with_grad), (stage, sorted(with_grad)[:5])
