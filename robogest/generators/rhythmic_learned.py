@@ -75,6 +75,10 @@ from robogest.speech.types import Speech  # noqa: E402
 TEXT_SCALE = 15.0
 
 
+#: Share of inserted silent blocks that are not the first of their run: with run lengths uniform in 0-10 (§6.4.1),
+#: 5 blocks per run on average of which 10/11 are firsts, (5 - 10/11) / 5 = 0.82.
+SILENT_RUN_LATER = 0.82
+
 #: Training stages in the paper's order (§4.1.3, §5.1, §5.3, §6).
 STAGES = ("encoder", "lexicon", "generator", "interpreters")
 
@@ -727,7 +731,8 @@ class RhythmicNet(nn.Module):
     def generator_losses(self, bl: Blocks, a_low, s_all, idx) -> dict[str, Any]:
         """Eq. 9 (``"gen"``, with its parts for the log) on teacher-forced blocks plus inserted silent blocks:
         after empty-word blocks, noise audio, z = 0, the nearest silent lexeme, the previous block's last pose held
-        still (§6.4.1)."""
+        still (§6.4.1). The paper inserts runs of 0-10 silent blocks; a block inside a run follows another silent
+        block, so :data:`SILENT_RUN_LATER` of the inserted blocks get the held pose as their previous block too."""
         c = self.config
         p, i, n = bl.prev, bl.cur, bl.nxt
         a3 = torch.cat([a_low[p], a_low[i], a_low[n]], dim=2)  # (S, K, 3 d_a)
@@ -740,11 +745,13 @@ class RhythmicNet(nn.Module):
         if self.training and after_empty.numel() and n_aug and bool((silent_of_prev >= 0).all()):
             pick = after_empty[torch.randint(0, after_empty.numel(), (max(1, n_aug),), device=a_low.device)]
             pp = p[pick]
-            prev_m = torch.cat([prev_m, bl.poses[pp]])
+            still = bl.poses[pp][:, -1:].expand(-1, c.block, -1)  # (A, K, P) the empty block's last pose held
+            later = torch.rand(pick.numel(), device=a_low.device) < SILENT_RUN_LATER  # follows an inserted block
+            prev_m = torch.cat([prev_m, torch.where(later[:, None, None], still, bl.poses[pp])])
             a3 = torch.cat([a3, a_low[pp].repeat(1, 1, 3)])
             s = torch.cat([s, self.vq.codebook.detach()[silent_of_prev[pick]]])
             z = torch.cat([z, z.new_zeros(pick.numel(), c.style_dim)])
-            target = torch.cat([target, bl.poses[pp][:, -1:].expand(-1, c.block, -1)])
+            target = torch.cat([target, still])
         n_real = i.numel()
 
         gen = self.gen(prev_m, a3, s, z)  # (S', K, P)
