@@ -96,8 +96,13 @@ class ServoBackend(Backend):
     ) -> None:
         super().__init__(robot)
         bus = robot.bus
-        if bus is None or bus.family != self.family:
-            raise ConfigError(f"robot {robot.name!r} has no {self.family} bus section; add bus: family: {self.family}")
+        if bus is None:
+            raise ConfigError(f"robot {robot.name!r} has no bus section; add bus: family: {self.family}, servos: ...")
+        if bus.family != self.family:
+            raise ConfigError(
+                f"robot {robot.name!r} has {bus.family} servos (bus.family in its YAML), not {self.family}; "
+                f"use --backend {bus.family}"
+            )
         self.protocol = float(bus.protocol)
         self.port_name = port or bus.port or ""
         if not self.port_name:

@@ -53,6 +53,16 @@ def test_rad_tick_mapping_roundtrip_and_direction(tmp_path):
     np.testing.assert_allclose(be.ticks_to_rad(t), q, atol=2 * np.pi / 4096)
 
 
+def test_wrong_servo_family_names_the_robots_family(tmp_path):
+    from robogest.errors import ConfigError
+
+    robot = make_robot(tmp_path, family="feetech", protocol=0.0)
+    with pytest.raises(
+        ConfigError, match=r"has feetech servos \(bus.family in its YAML\), not dynamixel; use --backend feetech"
+    ):
+        get_backend_factory("dynamixel")(robot, port="/dev/null")
+
+
 def test_model_mismatch_names_servo_and_models(tmp_path):
     bus_robot = make_robot(tmp_path / "bus", model="XM430-W350")
     robot = make_robot(tmp_path / "cfg", model="XL430-W250")
