@@ -404,3 +404,21 @@ def test_each_sequential_stage_trains_only_its_own_part(takes_and_speech):
         with_grad = {n for n, p in net.named_parameters() if p.grad is not None and float(p.grad.abs().sum()) > 0}
         assert with_grad, stage
         assert all(n.startswith(owners[stage]) for n in with_grad), (stage, sorted(with_grad)[:5])
+
+
+def test_resumed_run_keeps_its_stage_plan(fixture_data, tmp_path):
+    """A run resumed with more epochs keeps the checkpoint's stage plan: the extra epochs train the interpreters."""
+    import json
+
+    from robogest.learn.checkpoint import load_checkpoint
+    from robogest.learn.trainer import TrainConfig, train
+
+    kw = dict(
+        model="rhythmic", data=str(fixture_data), out=str(tmp_path / "r"), batch_size=16, window_stride=20,
+        val_fraction=0.0, device="cpu", cache_dir=str(tmp_path / "c"), model_overrides=SMALL, **HASH16,
+    )  # fmt: skip
+    train(TrainConfig(epochs=4, **kw), log=lambda s: None)
+    best = train(TrainConfig(epochs=6, resume=True, **kw), log=lambda s: None)
+    history = json.loads((tmp_path / "r" / "history.json").read_text())
+    assert [h["stage"] for h in history] == ["encoder", "lexicon", "generator"] + ["interpreters"] * 3
+    assert list(load_checkpoint(best)["model_config"]["stage_ends"]) == [1, 2, 3, 4]
