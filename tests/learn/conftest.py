@@ -12,6 +12,12 @@ from robogest.data import make_fixture_dataset
 #: two CPU cores; the paper's sizes are checked separately in test_gesticulator.py.
 SMALL_MODEL = {"frame_dim": 32, "hidden": (128, 64), "cond_dim": 64}
 HASH16 = {"text_encoder": "hash-test", "text_encoder_kwargs": {"dim": 16}}
+#: A reduced Rhythmic Gesticulator (the paper's structure, narrower layers) for the same reason; the paper's widths
+#: are the defaults, checked in test_rhythmic.test_paper_widths_are_the_defaults.
+RHYTHMIC_SMALL = {
+    "hidden": 64, "audio_channels": 32, "audio_layers": 4, "vq_channels": 32, "lexicon_size": 12, "lexeme_dim": 32,
+    "motion_feat_dim": 32, "audio_feat_dim": 32, "style_dim": 8, "pe_dim": 8, "latent_groups": 8, "latent_classes": 32,
+}  # fmt: skip
 #: Epochs of the shared run: 7 without autoregression + the 4 annealing epochs + 4 with full teacher forcing.
 EPOCHS = 15
 

@@ -19,14 +19,9 @@ from robogest.data.blocks import (  # noqa: E402
 from robogest.data.fixtures import FIXTURE_GESTURE  # noqa: E402
 from robogest.data.prep import Normalization  # noqa: E402
 from robogest.motion.skeleton import CANONICAL  # noqa: E402
-from tests.learn.conftest import HASH16  # noqa: E402
+from tests.learn.conftest import HASH16, RHYTHMIC_SMALL  # noqa: E402
 
-#: Reduced widths so the shared run fits the test budget on two CPU cores (the structure is the paper's; its
-#: widths are the defaults, checked in test_paper_widths_are_the_defaults).
-SMALL = {
-    "hidden": 64, "audio_channels": 32, "audio_layers": 4, "vq_channels": 32, "lexicon_size": 12, "lexeme_dim": 32,
-    "motion_feat_dim": 32, "audio_feat_dim": 32, "style_dim": 8, "pe_dim": 8, "latent_groups": 8, "latent_classes": 32,
-}  # fmt: skip
+SMALL = RHYTHMIC_SMALL
 K = 10  # D_M = 0.5 s at 20 fps
 
 

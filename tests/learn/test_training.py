@@ -15,7 +15,7 @@ torch = pytest.importorskip("torch")
 from robogest.data import FeatureConfig, discover_takes, load_take  # noqa: E402
 from robogest.data.fixtures import FIXTURE_GESTURE  # noqa: E402
 from robogest.motion.skeleton import CANONICAL  # noqa: E402
-from tests.learn.conftest import HASH16, SMALL_MODEL  # noqa: E402
+from tests.learn.conftest import HASH16, RHYTHMIC_SMALL, SMALL_MODEL  # noqa: E402
 
 
 def _history(cfg) -> list[dict]:
@@ -140,24 +140,29 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def test_ddp_gloo_single_process(fixture_data, tmp_path, monkeypatch):
-    """The torchrun path (RANK/WORLD_SIZE set): gloo process group, DDP-wrapped model, rank 0 writes."""
+@pytest.mark.parametrize("model", ["gesticulator", "rhythmic"])
+def test_ddp_gloo_single_process(fixture_data, tmp_path, monkeypatch, model):
+    """The torchrun path (RANK/WORLD_SIZE set): gloo process group, DDP-wrapped model, rank 0 writes. The rhythmic
+    model leaves every other stage's parameters unused in each epoch."""
     from robogest.learn.checkpoint import load_checkpoint
     from robogest.learn.trainer import TrainConfig, train
 
     for k, v in {"RANK": "0", "WORLD_SIZE": "1", "LOCAL_RANK": "0", "MASTER_ADDR": "127.0.0.1"}.items():
         monkeypatch.setenv(k, v)
     monkeypatch.setenv("MASTER_PORT", str(_free_port()))
+    if model == "rhythmic":
+        epochs, overrides = 4, RHYTHMIC_SMALL
+    else:
+        epochs, overrides = 2, {**SMALL_MODEL, "pretrain_epochs": 1}
     cfg = TrainConfig(
-        data=str(fixture_data), out=str(tmp_path / "ddp"), epochs=2, lr=1e-3, window_stride=10, val_fraction=0.0,
-        device="cpu", cache_dir=str(tmp_path / "cache"), model_overrides={**SMALL_MODEL, "pretrain_epochs": 1},
-        **HASH16,
+        model=model, data=str(fixture_data), out=str(tmp_path / "ddp"), epochs=epochs, lr=1e-3, window_stride=10,
+        val_fraction=0.0, device="cpu", cache_dir=str(tmp_path / "cache"), model_overrides=overrides, **HASH16,
     )  # fmt: skip
     lines: list[str] = []
     train(cfg, log=lines.append)
     ckpt = load_checkpoint(tmp_path / "ddp" / "last.pt")
     assert not any(k.startswith("module.") for k in ckpt["model_state"])  # the unwrapped model is saved
-    assert ckpt["train_state"]["next_epoch"] == 2
+    assert ckpt["train_state"]["next_epoch"] == epochs
     import torch.distributed as dist
 
     assert not dist.is_initialized()  # torn down after training
