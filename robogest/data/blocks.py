@@ -69,39 +69,12 @@ def resample_clip(x: np.ndarray, k: int) -> np.ndarray:
     return ((1.0 - w)[:, None] * x[i0] + w[:, None] * x[i1]).astype(x.dtype, copy=False)
 
 
-def block_index(bounds: np.ndarray, k: int, offset: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Gather indices that turn a frame array into blocks, for batched (torch or numpy) use.
-
-    Parameters
-    ----------
-    bounds : ndarray [shape=(C + 1,)], int
-        From :func:`clip_bounds`.
-    k : int
-        Block length.
-    offset : int
-        Added to every index (position of the take inside a flattened batch).
-
-    Returns
-    -------
-    i0, i1 : ndarray [shape=(C, k)], int
-    w : ndarray [shape=(C, k)], float32
-        ``block[c, j] = (1 - w[c, j]) * x[i0[c, j]] + w[c, j] * x[i1[c, j]]``.
-    """
-    i0s, i1s, ws = [], [], []
-    for a, b in itertools.pairwise(bounds):
-        i0, i1, w = _positions(int(b - a), k)
-        i0s.append(i0 + a + offset)
-        i1s.append(i1 + a + offset)
-        ws.append(w)
-    if not i0s:
-        return np.zeros((0, k), int), np.zeros((0, k), int), np.zeros((0, k), np.float32)
-    return np.stack(i0s), np.stack(i1s), np.stack(ws).astype(np.float32)
-
-
 def normalize_clips(x: np.ndarray, bounds: np.ndarray, k: int) -> np.ndarray:
-    """Frames ``x`` ``(T, D)`` -> blocks ``(C, k, D)``, one per clip of ``bounds``."""
-    i0, i1, w = block_index(bounds, k)
-    return ((1.0 - w)[..., None] * x[i0] + w[..., None] * x[i1]).astype(np.float32)  # (C, k, D)
+    """Frames ``x`` ``(T, D)`` -> blocks ``(C, k, D)``, one per clip of ``bounds`` (:func:`resample_clip` each)."""
+    blocks = [resample_clip(x[a:b], k) for a, b in itertools.pairwise(np.asarray(bounds, dtype=int))]
+    if not blocks:
+        return np.zeros((0, k, x.shape[1]), np.float32)
+    return np.stack(blocks).astype(np.float32)  # (C, k, D)
 
 
 def denormalize_blocks(blocks: np.ndarray, lengths: np.ndarray) -> np.ndarray:
@@ -150,9 +123,7 @@ def quiet_frames(
     return power <= noise + margin_db
 
 
-def silent_blocks(
-    bounds: np.ndarray, words: np.ndarray, quiet: np.ndarray, quiet_share: float = 0.5, has_words: bool | None = None
-) -> np.ndarray:
+def silent_blocks(bounds: np.ndarray, words: np.ndarray, quiet: np.ndarray, quiet_share: float = 0.5) -> np.ndarray:
     """Silent clips ``(C,)`` bool (the silent-period hint of §6.4.1, also without a transcript).
 
     A clip is silent when it overlaps no word and, only when the whole sequence has no words at all (audio
@@ -165,12 +136,9 @@ def silent_blocks(
         Frames inside a word.
     quiet : ndarray [shape=(T,)], bool
         :func:`quiet_frames`.
-    has_words : bool, optional
-        Whether the whole take has words, for ``words`` covering only part of it (a training window);
-        ``words.any()`` by default.
     """
     no_word = block_fraction(words, bounds) == 0.0
-    if bool(np.any(words)) if has_words is None else has_words:
+    if np.any(words):
         return no_word
     return no_word & (block_fraction(quiet, bounds) > quiet_share)
 

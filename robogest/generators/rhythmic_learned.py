@@ -81,6 +81,8 @@ SILENT_RUN_LATER = 0.82
 
 #: Training stages in the paper's order (§4.1.3, §5.1, §5.3, §6).
 STAGES = ("encoder", "lexicon", "generator", "interpreters")
+#: The objective of each stage, as named in :attr:`RhythmicNet.last_parts`.
+STAGE_LOSSES = ("contrastive", "vq", "gen", "interp")
 
 
 @dataclass(frozen=True)
@@ -684,13 +686,15 @@ class RhythmicNet(nn.Module):
             with torch.no_grad():
                 a_low, a_high, _ = self.audio_features(bl.mel)
 
+        if stage == "encoder":
+            return self._total(parts, speech)
         if "lexicon" in active:
             parts["vq"], rec_err, idx = self.vq(bl.poses)
             parts["vq_rec"] = rec_err
         else:
             with torch.no_grad():
                 idx = self.vq.quantize(self.vq.encode(bl.poses))
-        if self.training and stage != "encoder":  # silent-lexeme statistics of the current lexicon
+        if self.training:  # silent-lexeme statistics of the current lexicon
             with torch.no_grad():
                 n_s = c.lexicon_size
                 self.lex_total.mul_(0.98).add_(torch.bincount(idx, minlength=n_s).float())
@@ -720,10 +724,12 @@ class RhythmicNet(nn.Module):
                 l_int = l_int + F.cross_entropy(lex_net(h3, text_i, s_all[p]), lex_t)
                 l_int = l_int + F.mse_loss(sty_net(a3, text_i, ctx_z), z_t)
             parts["interp"] = l_int
+        return self._total(parts, speech)
 
-        weights = {"vq_rec": 0.0, "rec": 0.0, "perc": 0.0, "lexeme": 0.0, "kl": 0.0}
-        total = sum((parts[k] * weights.get(k, 1.0) for k in parts), zero)
+    def _total(self, parts: dict[str, Any], speech):
+        """Sum of the stages' objectives in ``parts`` (the other entries are their terms, logged only)."""
         self.last_parts = {k: float(v.detach()) for k, v in parts.items()}
+        total = sum((parts[k] for k in STAGE_LOSSES if k in parts), speech.new_zeros(()))
         if self.training and not total.requires_grad:  # nothing to learn in this batch (e.g. no words to contrast)
             total = total + speech.new_zeros((), requires_grad=True)
         return total
@@ -839,20 +845,17 @@ class RhythmicSpec:
         """
         k, m = config.block, config.n_mels
         w = length // k
-
-        def per_take():
-            for i, t in enumerate(takes):
-                audio = t.read_audio(config.audio_sr) if config.audio_tsm and t.audio_path is not None else None
-                tb = take_blocks(t.acoustic[:, :m], t.text, norm, config, audio, t.poses)
-                flag = np.broadcast_to(tb.silent[:, None, None], (*tb.mel.shape[:2], 1)).astype(np.float32)
-                x = np.concatenate([tb.mel, tb.text, flag], axis=2)  # (C, K, F)
-                n_c = x.shape[0]
-                if n_c >= w:
-                    step = max(1, round(stride * n_c / t.n_frames))  # frames -> blocks
-                    yield i, x.reshape(n_c, -1), tb.poses.reshape(n_c, -1), step  # (C, K * F), (C, K * P)
-
         xs, ys, idx = [], [], []
-        for i, x, y, step in per_take():
+        for i, t in enumerate(takes):
+            audio = t.read_audio(config.audio_sr) if config.audio_tsm and t.audio_path is not None else None
+            tb = take_blocks(t.acoustic[:, :m], t.text, norm, config, audio, t.poses)
+            n_c = tb.silent.shape[0]
+            if n_c < w:
+                continue
+            flag = np.broadcast_to(tb.silent[:, None, None], (n_c, k, 1))
+            x = np.concatenate([tb.mel, tb.text, flag], axis=2).reshape(n_c, -1)  # (C, K, F) -> (C, K * F)
+            y = tb.poses.reshape(n_c, -1)  # (C, K, P) -> (C, K * P)
+            step = max(1, round(stride * n_c / t.n_frames))  # frames -> blocks
             xw, yw, _ = slice_windows([(i, x, y)], w, step, x.shape[1], y.shape[1])  # (N_i, W, K * F)
             xs.append(xw.reshape(xw.shape[0], w * k, -1))  # (N_i, W, K * F) -> (N_i, W * K, F)
             ys.append(yw.reshape(yw.shape[0], w * k, -1))
