@@ -230,10 +230,9 @@ def tsm_mel_blocks(
     """
     import librosa
 
-    from robogest.speech.features import log_mel_db
+    from robogest.speech.features import log_mel_db, mel_hop_win
 
-    hop = max(1, math.floor(sr / fps + 1e-9))
-    win = max(16, round(window_s * sr))
+    hop, win = mel_hop_win(sr, fps, window_s)
     n_fft = 1 << max(6, round(math.log2(0.032 * sr)))  # vocoder STFT: 32 ms (512 at 16 kHz), hop a quarter
     audio = np.asarray(audio, np.float32)
     bounds = np.asarray(bounds, dtype=int)

@@ -93,9 +93,8 @@ def acoustic_features(audio: np.ndarray, sr: int, config: SpeechConfig, activity
     import librosa
 
     n_frames = config.n_frames(audio.shape[0], sr)
-    hop = max(1, math.floor(sr / config.fps + 1e-9))
+    hop, win = mel_hop_win(sr, config.fps, config.mel_window_s)
     pos = _frame_positions(n_frames, config.fps, sr, hop)
-    win = max(16, round(config.mel_window_s * sr))
     if n_frames == 0:
         z = np.zeros((0,), np.float32)
         return {"mel_db": np.zeros((0, config.n_mels), np.float32), "mfcc": np.zeros((0, 37), np.float32),
@@ -123,6 +122,12 @@ def acoustic_features(audio: np.ndarray, sr: int, config: SpeechConfig, activity
         "rms": _take(rms[:m], n_frames, pos).astype(np.float32),
         "pitch_hz": _take(pitch, n_frames, pos, nearest=True).astype(np.float32),
     }
+
+
+def mel_hop_win(sr: int, fps: float, window_s: float) -> tuple[int, int]:
+    """Hop and window of the front-end's spectral frames, samples: the largest whole hop not above ``sr / fps``
+    (frames are interpolated onto the exact frame times when it is not whole) and ``window_s`` rounded."""
+    return max(1, math.floor(sr / fps + 1e-9)), max(16, round(window_s * sr))
 
 
 def log_mel_db(audio: np.ndarray, sr: int, hop: int, win: int, n_mels: int, center: bool = True) -> np.ndarray:
