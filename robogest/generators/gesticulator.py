@@ -339,14 +339,7 @@ class GesticulatorGenerator(CheckpointGenerator):
         """Motion at ``speech.fps`` lasting as long as the speech (deterministic: dropout is off)."""
         torch.manual_seed(seed)
         poses = self.predict(self.inputs(speech))  # (T, J * 3) at the model's fps
-        motion = expmap_to_motion(poses, self.features.fps)
-        if abs(speech.fps - self.features.fps) > 1e-6:
-            motion = motion.resample(speech.fps)
-        n = speech.n_frames
-        if motion.n_frames != n:  # resampling rounds; pad/trim to exactly the speech's frames
-            idx = np.minimum(np.arange(n), motion.n_frames - 1)
-            motion = HumanMotion(speech.fps, motion.rotations[idx], motion.root_pos_m[idx], motion.skeleton)
-        return motion
+        return expmap_to_motion(poses, self.features.fps).resample(speech.fps, n_frames=speech.n_frames)
 
 
 __all__ = [

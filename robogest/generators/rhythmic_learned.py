@@ -1007,10 +1007,4 @@ class RhythmicGenerator(CheckpointGenerator):
         s = self.at_model_rate(speech)
         g = torch.Generator().manual_seed(int(seed))
         plan = self.generate_blocks(s, temperature=self.config.lexeme_temperature, generator=g)
-        motion = expmap_to_motion(plan.poses, s.fps)
-        if s is not speech:
-            motion = motion.resample(speech.fps)
-            n = speech.n_frames
-            idx = np.minimum(np.arange(n), max(motion.n_frames - 1, 0))
-            motion = HumanMotion(speech.fps, motion.rotations[idx], motion.root_pos_m[idx], motion.skeleton)
-        return motion
+        return expmap_to_motion(plan.poses, s.fps).resample(speech.fps, n_frames=speech.n_frames)

@@ -769,14 +769,7 @@ class S2AGGenerator(Generator):
         torch.manual_seed(seed)
         mfcc, text = self.inputs(speech)
         dirs = self.predict(mfcc, text, self.style_vector(self.speaker, seed))  # (T, 9, 3)
-        motion = directions_to_motion(dirs, self.features.fps)
-        if abs(speech.fps - self.features.fps) > 1e-6:
-            motion = motion.resample(speech.fps)
-        n = speech.n_frames
-        if motion.n_frames != n:  # resampling rounds; pad/trim to exactly the speech's frames
-            idx = np.minimum(np.arange(n), max(motion.n_frames - 1, 0))
-            motion = HumanMotion(speech.fps, motion.rotations[idx], motion.root_pos_m[idx], motion.skeleton)
-        return motion
+        return directions_to_motion(dirs, self.features.fps).resample(speech.fps, n_frames=speech.n_frames)
 
 
 __all__ = [

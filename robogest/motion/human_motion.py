@@ -69,8 +69,19 @@ class HumanMotion:
         """Joint positions ``(T, J, 3)`` in metres, by forward kinematics."""
         return self.skeleton.forward_kinematics(self.rotations, self.root_pos_m)
 
-    def resample(self, fps: float) -> HumanMotion:
-        """Same motion at another frame rate (slerp for rotations, linear for the root)."""
+    def resample(self, fps: float, n_frames: int | None = None) -> HumanMotion:
+        """Same motion at another frame rate (slerp for rotations, linear for the root).
+
+        ``n_frames`` makes the result exactly that long (a generator's output must match its speech frame for
+        frame, and rate conversion rounds): missing frames hold the last one, extra frames are dropped.
+        """
+        out = self._resample(fps)
+        if n_frames is None or out.n_frames == n_frames:
+            return out
+        idx = np.minimum(np.arange(n_frames), max(out.n_frames - 1, 0))  # (n_frames,) pad by holding the last
+        return HumanMotion(fps, out.rotations[idx], out.root_pos_m[idx], out.skeleton)
+
+    def _resample(self, fps: float) -> HumanMotion:
         if not fps > 0:
             raise InputError(f"target frame rate must be positive, got {fps}")
         if self.n_frames < 2 or fps == self.fps:

@@ -26,6 +26,19 @@ def test_resample_preserves_duration_and_content():
     assert np.allclose(np.linalg.norm(down.rotations, axis=-1), 1.0)
 
 
+def test_resample_to_an_exact_frame_count_holds_or_drops_the_end():
+    m = _wave(91, 30.0)
+    free = m.resample(20.0)  # 91 frames at 30 fps -> 61 at 20 fps
+    longer, shorter = m.resample(20.0, n_frames=64), m.resample(20.0, n_frames=58)
+    assert (longer.n_frames, shorter.n_frames, longer.fps) == (64, 58, 20.0)
+    np.testing.assert_array_equal(longer.rotations[: free.n_frames], free.rotations)
+    np.testing.assert_array_equal(longer.rotations[free.n_frames :], np.repeat(free.rotations[-1:], 3, axis=0))
+    np.testing.assert_array_equal(longer.root_pos_m[-1], free.root_pos_m[-1])
+    np.testing.assert_array_equal(shorter.rotations, free.rotations[:58])
+    same = m.resample(30.0, n_frames=91)
+    np.testing.assert_array_equal(same.rotations, m.rotations)
+
+
 def test_positions_shape_and_rest():
     m = HumanMotion.rest(4, 25.0)
     assert m.positions().shape == (4, CANONICAL.n_joints, 3)
