@@ -45,6 +45,7 @@ def _to_signed(v: int, size: int) -> int:
 
 class DynamixelBackend(ServoBackend):
     family = "dynamixel"
+    sdk = dxl
 
     def __init__(self, robot: RobotConfig, port: str | None = None, baudrate: int | None = None, **options: Any):
         super().__init__(robot, port, baudrate, **options)
@@ -60,9 +61,6 @@ class DynamixelBackend(ServoBackend):
             "min": XReg.MIN_POSITION_LIMIT if p2 else P1Reg.CW_ANGLE_LIMIT,
             "max": XReg.MAX_POSITION_LIMIT if p2 else P1Reg.CCW_ANGLE_LIMIT,
         }
-        self._port: Any = None
-        self._ph: Any = None
-        self._writers: dict[Enum, Any] = {}
 
     def _lookup_model(self, name: str, sid: int) -> ServoModel:
         key = name.upper().replace("_", "-")
@@ -73,52 +71,13 @@ class DynamixelBackend(ServoBackend):
             raise ConfigError(f"servo id {sid}: {m.name} speaks Protocol {m.protocol}, bus says {self.protocol}")
         return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick)
 
-    def _open(self) -> None:
-        self._port = dxl.PortHandler(self.port_name)
-        self._ph = dxl.PacketHandler(self.protocol)
-        if not self._port.openPort() or not self._port.setBaudRate(self.baudrate):
-            raise OSError(f"baud rate {self.baudrate} not supported by the SDK")
-        self._writers = {}
-
-    def _result(self, value: int, comm: int, err: int) -> Raw:
-        self._port.is_using = False
-        return value, comm == dxl.COMM_SUCCESS, err, self._ph.getTxRxResult(comm)
-
-    def _ping_raw(self, sid: int) -> Raw:
-        self._port.is_using = False
-        return self._result(*self._ph.ping(self._port, sid))
+    def _packet_protocol(self) -> float:
+        return self.protocol
 
     def _decode(self, reg: Enum, raw: int) -> int:
         if reg in X_SIGNED:
             return _to_signed(raw, reg.value[1])
         return sign_magnitude_decode(raw, P1_SIGN_BITS.get(reg))  # type: ignore[call-overload]
-
-    def _read_raw(self, sid: int, reg: Enum) -> Raw:
-        self._port.is_using = False
-        addr, size = reg.value
-        fn = {1: self._ph.read1ByteTxRx, 2: self._ph.read2ByteTxRx, 4: self._ph.read4ByteTxRx}[size]
-        value, comm, err = fn(self._port, sid, addr)
-        return self._result(self._decode(reg, value), comm, err)
-
-    def _write_raw(self, sid: int, reg: Enum, value: int) -> Raw:
-        self._port.is_using = False
-        addr, size = reg.value
-        fn = {1: self._ph.write1ByteTxRx, 2: self._ph.write2ByteTxRx, 4: self._ph.write4ByteTxRx}[size]
-        comm, err = fn(self._port, sid, addr, value & ((1 << (8 * size)) - 1))
-        return self._result(0, comm, err)
-
-    def _sync_write_raw(self, reg: Enum, values: dict[int, int]) -> None:
-        self._port.is_using = False
-        addr, size = reg.value
-        gsw = self._writers.get(reg)
-        if gsw is None:
-            gsw = self._writers[reg] = dxl.GroupSyncWrite(self._port, self._ph, addr, size)
-        gsw.clearParam()
-        for sid, v in values.items():
-            gsw.addParam(sid, list((v & ((1 << (8 * size)) - 1)).to_bytes(size, "little")))
-        comm = gsw.txPacket()
-        if comm != dxl.COMM_SUCCESS:
-            raise OSError(f"sync write {reg.name} failed: {self._ph.getTxRxResult(comm)}")
 
     def _sync_read_raw(self, reg: Enum, ids: list[int]) -> dict[int, Raw]:
         if self.protocol != 2.0:

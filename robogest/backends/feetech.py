@@ -31,6 +31,7 @@ CRC_BYTES = 1  # checksum at the end of a status packet
 
 class FeetechBackend(ServoBackend):
     family = "feetech"
+    sdk = scs
 
     def __init__(self, robot: RobotConfig, port: str | None = None, baudrate: int | None = None, **options: Any):
         super().__init__(robot, port, baudrate, **options)
@@ -48,9 +49,6 @@ class FeetechBackend(ServoBackend):
             "max": R.MAX_POSITION_LIMIT,
         }
         self._R = R
-        self._port: Any = None
-        self._ph: Any = None
-        self._writers: dict[Enum, Any] = {}
 
     def _lookup_model(self, name: str, sid: int) -> ServoModel:
         key = name.upper().replace("-", "").replace("_", "")
@@ -61,12 +59,11 @@ class FeetechBackend(ServoBackend):
             raise ConfigError(f"servo id {sid}: {m.name} uses protocol {m.protocol_end}, bus says {self.protocol:g}")
         return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick)
 
-    def _open(self) -> None:
-        self._port = scs.PortHandler(self.port_name)
-        self._ph = scs.PacketHandler(self._end)
-        if not self._port.openPort() or not self._port.setBaudRate(self.baudrate):
-            raise OSError(f"baud rate {self.baudrate} not supported by the SDK")
-        self._writers = {}
+    def _packet_protocol(self) -> int:
+        return self._end
+
+    def _sync_bytes(self, raw: int, size: int) -> list[int]:
+        return [raw & 0xFF] if size == 1 else [scs.SCS_LOBYTE(raw), scs.SCS_HIBYTE(raw)]  # in the bus's byte order
 
     def _prep(self) -> None:
         scs.SCS_SETEND(self._end)
@@ -83,43 +80,6 @@ class FeetechBackend(ServoBackend):
 
     def _decode(self, reg: Enum, raw: int) -> int:
         return sign_magnitude_decode(raw, self._signs.get(reg))  # type: ignore[call-overload]
-
-    def _result(self, value: int, comm: int, err: int) -> Raw:
-        self._port.is_using = False
-        return value, comm == scs.COMM_SUCCESS, err, self._ph.getTxRxResult(comm)
-
-    def _ping_raw(self, sid: int) -> Raw:
-        self._prep()
-        return self._result(*self._ph.ping(self._port, sid))
-
-    def _read_raw(self, sid: int, reg: Enum) -> Raw:
-        self._prep()
-        addr, size = reg.value
-        fn = {1: self._ph.read1ByteTxRx, 2: self._ph.read2ByteTxRx}[size]
-        value, comm, err = fn(self._port, sid, addr)
-        return self._result(self._decode(reg, value), comm, err)
-
-    def _write_raw(self, sid: int, reg: Enum, value: int) -> Raw:
-        self._prep()
-        addr, size = reg.value
-        fn = {1: self._ph.write1ByteTxRx, 2: self._ph.write2ByteTxRx}[size]
-        comm, err = fn(self._port, sid, addr, self._encode(reg, value))
-        return self._result(0, comm, err)
-
-    def _sync_write_raw(self, reg: Enum, values: dict[int, int]) -> None:
-        self._prep()
-        addr, size = reg.value
-        gsw = self._writers.get(reg)
-        if gsw is None:
-            gsw = self._writers[reg] = scs.GroupSyncWrite(self._port, self._ph, addr, size)
-        gsw.clearParam()
-        for sid, v in values.items():
-            raw = self._encode(reg, v)
-            data = [raw & 0xFF] if size == 1 else [scs.SCS_LOBYTE(raw), scs.SCS_HIBYTE(raw)]
-            gsw.addParam(sid, data)
-        comm = gsw.txPacket()
-        if comm != scs.COMM_SUCCESS:
-            raise OSError(f"sync write {reg.name} failed: {self._ph.getTxRxResult(comm)}")
 
     def _sync_read_raw(self, reg: Enum, ids: list[int]) -> dict[int, Raw]:
         self._prep()

@@ -1,8 +1,9 @@
 """What every serial-servo backend shares: rad <-> tick mapping, retries, health checks, safe shutdown.
 
-A family subclass (:mod:`~robogest.backends.dynamixel`, :mod:`~robogest.backends.feetech`) only
-wraps its vendor SDK in a handful of raw calls (:meth:`ServoBackend._ping_raw` and friends) and
-names its registers; ticks never leave this module and its subclasses.
+The raw transactions (:meth:`ServoBackend._ping_raw` and friends) are written once against the shape both vendor
+SDKs share; a family subclass (:mod:`~robogest.backends.dynamixel`, :mod:`~robogest.backends.feetech`) names its
+SDK module and registers and supplies its quirks (value encoding, byte order, sync read); ticks never leave this
+module and its subclasses.
 """
 
 from __future__ import annotations
@@ -146,6 +147,9 @@ class ServoBackend(Backend):
         self.health_lost_after_s = 2.0
         self._volt_limits: dict[int, tuple[float, float]] = {}
         self._shut_down = False
+        self._port: Any = None  # the SDK's PortHandler, PacketHandler and GroupSyncWrite per register, once open
+        self._ph: Any = None
+        self._writers: dict[Enum, Any] = {}
         n = len(servos)
         self._positions_known = False
         self._last_ticks = np.zeros(n, dtype=np.int64)  # last valid present position per servo
@@ -162,11 +166,38 @@ class ServoBackend(Backend):
         return max(1, math.ceil(self.lost_after_s * self.control_rate_hz - 1e-9))
 
     # --- family hooks ----------------------------------------------------------------------------
+    #: The vendor SDK module: ``PortHandler``, ``PacketHandler``, ``GroupSyncWrite``, ``COMM_SUCCESS`` (the two SDKs
+    #: share these shapes, one being a port of the other). Set by each family.
+    sdk: ClassVar[Any] = None
+
     def _lookup_model(self, name: str, sid: int) -> ServoModel:
         raise NotImplementedError
 
-    def _open(self) -> None:
+    def _packet_protocol(self) -> Any:
+        """The ``PacketHandler`` argument (protocol version, or byte order)."""
         raise NotImplementedError
+
+    def _prep(self) -> None:
+        """Before every transaction: free the SDK's port for it (families add their quirks)."""
+        self._port.is_using = False
+
+    def _encode(self, reg: Enum, value: int) -> int:
+        """Signed value -> raw register value (default: two's complement in the register's width)."""
+        return value & ((1 << (8 * reg.value[1])) - 1)
+
+    def _decode(self, reg: Enum, raw: int) -> int:
+        raise NotImplementedError
+
+    def _sync_bytes(self, raw: int, size: int) -> list[int]:
+        """A raw register value as the bytes of a sync write (default: little-endian)."""
+        return list(raw.to_bytes(size, "little"))
+
+    def _open(self) -> None:
+        self._port = self.sdk.PortHandler(self.port_name)
+        self._ph = self.sdk.PacketHandler(self._packet_protocol())
+        if not self._port.openPort() or not self._port.setBaudRate(self.baudrate):
+            raise OSError(f"baud rate {self.baudrate} not supported by the SDK")
+        self._writers = {}
 
     def _close(self) -> None:
         # Both vendor SDKs share the PortHandler shape (one is a port of the other).
@@ -174,18 +205,39 @@ class ServoBackend(Backend):
         if port is not None and port.is_open:
             port.closePort()
 
+    def _result(self, value: int, comm: int, err: int) -> Raw:
+        self._port.is_using = False
+        return value, comm == self.sdk.COMM_SUCCESS, err, self._ph.getTxRxResult(comm)
+
     def _ping_raw(self, sid: int) -> Raw:
         """(model number, ok, error byte, comm text)."""
-        raise NotImplementedError
+        self._prep()
+        return self._result(*self._ph.ping(self._port, sid))
 
     def _read_raw(self, sid: int, reg: Enum) -> Raw:
-        raise NotImplementedError
+        self._prep()
+        addr, size = reg.value
+        value, comm, err = getattr(self._ph, f"read{size}ByteTxRx")(self._port, sid, addr)
+        return self._result(self._decode(reg, value), comm, err)
 
     def _write_raw(self, sid: int, reg: Enum, value: int) -> Raw:
-        raise NotImplementedError
+        self._prep()
+        addr, size = reg.value
+        comm, err = getattr(self._ph, f"write{size}ByteTxRx")(self._port, sid, addr, self._encode(reg, value))
+        return self._result(0, comm, err)
 
     def _sync_write_raw(self, reg: Enum, values: dict[int, int]) -> None:
-        raise NotImplementedError
+        self._prep()
+        addr, size = reg.value
+        gsw = self._writers.get(reg)
+        if gsw is None:
+            gsw = self._writers[reg] = self.sdk.GroupSyncWrite(self._port, self._ph, addr, size)
+        gsw.clearParam()
+        for sid, v in values.items():
+            gsw.addParam(sid, self._sync_bytes(self._encode(reg, v), size))
+        comm = gsw.txPacket()
+        if comm != self.sdk.COMM_SUCCESS:
+            raise OSError(f"sync write {reg.name} failed: {self._ph.getTxRxResult(comm)}")
 
     def _sync_read_raw(self, reg: Enum, ids: list[int]) -> dict[int, Raw]:
         """Default: one read per servo (Protocol 1.0 has no sync read)."""
