@@ -43,6 +43,7 @@ def _to_signed(v: int, size: int) -> int:
     return v - (1 << (8 * size)) if v & (1 << (8 * size - 1)) else v
 
 
+@register_backend("dynamixel")
 class DynamixelBackend(ServoBackend):
     family = "dynamixel"
     sdk = dxl
@@ -131,11 +132,3 @@ class DynamixelBackend(ServoBackend):
         lo = self.read_register(sid, XReg.MIN_VOLTAGE_LIMIT if p2 else P1Reg.MIN_VOLTAGE_LIMIT) / 10.0
         hi = self.read_register(sid, XReg.MAX_VOLTAGE_LIMIT if p2 else P1Reg.MAX_VOLTAGE_LIMIT) / 10.0
         return lo, hi
-
-
-@register_backend("dynamixel")
-def make_dynamixel(
-    robot: RobotConfig, port: str | None = None, baudrate: int | None = None, **options: Any
-) -> DynamixelBackend:
-    """Factory for ``get_backend_factory("dynamixel")``."""
-    return DynamixelBackend(robot, port, baudrate, **options)

@@ -29,6 +29,7 @@ from robogest.robot.config import RobotConfig
 CRC_BYTES = 1  # checksum at the end of a status packet
 
 
+@register_backend("feetech")
 class FeetechBackend(ServoBackend):
     family = "feetech"
     sdk = scs
@@ -114,11 +115,3 @@ class FeetechBackend(ServoBackend):
         lo = self.read_register(sid, self._R.MIN_VOLTAGE_LIMIT) / 10.0
         hi = self.read_register(sid, self._R.MAX_VOLTAGE_LIMIT) / 10.0
         return lo, hi
-
-
-@register_backend("feetech")
-def make_feetech(
-    robot: RobotConfig, port: str | None = None, baudrate: int | None = None, **options: Any
-) -> FeetechBackend:
-    """Factory for ``get_backend_factory("feetech")``."""
-    return FeetechBackend(robot, port, baudrate, **options)
