@@ -223,42 +223,41 @@ def play(
                 k = max(k + 1, behind)  # skip slots already lost instead of bunching ticks
 
     with sigterm_as_exception():
-        if True:
+        try:
+            set_rate = getattr(backend, "set_control_rate", None)
+            if set_rate is not None:  # serial backends turn their lost-servo time into ticks
+                set_rate(rate_hz)
+            if not getattr(backend, "is_connected", False):
+                backend.connect()
+            q_now = np.clip(backend.read_positions(), lo, hi)
+            backend.write_goal(q_now)  # hold where it is, so enabling torque does not jump
+            backend.set_torque(True)
+            q_first = np.clip(trajectory.sample(0.0), lo, hi)
+            ramp_in = ramp_duration(q_now, q_first, trajectory.v_max_rad_s, trajectory.a_max_rad_s2)
+            report.ramp_in_s = ramp_in
+            if ramp_in > 0:
+                run_phase(lambda t: ramp_sample(q_now, q_first, t, ramp_in), ramp_in, None)
+
+            def start_audio() -> None:
+                report.audio = sound.start()
+
+            run_phase(trajectory.sample, trajectory.duration_s, start_audio)
+            q_last = np.clip(trajectory.sample(trajectory.duration_s), lo, hi)
+            rest = np.clip(trajectory.rest_q_rad, lo, hi)
+            ramp_out = ramp_duration(q_last, rest, trajectory.v_max_rad_s, trajectory.a_max_rad_s2)
+            run_phase(lambda t: ramp_sample(q_last, rest, t, ramp_out), ramp_out, None)
+            _settle(backend, rest, period)
+            report.completed = True
+        except RobogestError as e:
+            report.errors.append(str(e))
+            e.report = report  # type: ignore[attr-defined]
+            raise
+        finally:
+            sound.stop()
             try:
-                set_rate = getattr(backend, "set_control_rate", None)
-                if set_rate is not None:  # serial backends turn their lost-servo time into ticks
-                    set_rate(rate_hz)
-                if not getattr(backend, "is_connected", False):
-                    backend.connect()
-                q_now = np.clip(backend.read_positions(), lo, hi)
-                backend.write_goal(q_now)  # hold where it is, so enabling torque does not jump
-                backend.set_torque(True)
-                q_first = np.clip(trajectory.sample(0.0), lo, hi)
-                ramp_in = ramp_duration(q_now, q_first, trajectory.v_max_rad_s, trajectory.a_max_rad_s2)
-                report.ramp_in_s = ramp_in
-                if ramp_in > 0:
-                    run_phase(lambda t: ramp_sample(q_now, q_first, t, ramp_in), ramp_in, None)
-
-                def start_audio() -> None:
-                    report.audio = sound.start()
-
-                run_phase(trajectory.sample, trajectory.duration_s, start_audio)
-                q_last = np.clip(trajectory.sample(trajectory.duration_s), lo, hi)
-                rest = np.clip(trajectory.rest_q_rad, lo, hi)
-                ramp_out = ramp_duration(q_last, rest, trajectory.v_max_rad_s, trajectory.a_max_rad_s2)
-                run_phase(lambda t: ramp_sample(q_last, rest, t, ramp_out), ramp_out, None)
-                _settle(backend, rest, period)
-                report.completed = True
-            except RobogestError as e:
-                report.errors.append(str(e))
-                e.report = report  # type: ignore[attr-defined]
-                raise
+                backend.shutdown()
             finally:
-                sound.stop()
-                try:
-                    backend.shutdown()
-                finally:
-                    _finish(report, backend, starts, period, wall0)
+                _finish(report, backend, starts, period, wall0)
     return report
 
 
