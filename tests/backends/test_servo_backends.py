@@ -138,6 +138,29 @@ def test_exception_in_the_middle_still_turns_torque_off(tmp_path, monkeypatch):
         assert backend.torque_off_attempted
 
 
+@pytest.mark.parametrize(("family", "protocol"), [("dynamixel", 2.0), ("feetech", 0.0)])
+def test_ctrl_c_mid_play_goes_to_rest_and_turns_torque_off(tmp_path, family, protocol):
+    """A real SIGINT (what Ctrl-C sends) one second into the motion: KeyboardInterrupt reaches the caller, and on
+    the way the robot ramps to rest and every servo's torque is turned off."""
+    import signal
+
+    robot = make_robot(tmp_path, family=family, protocol=protocol)
+
+    def ctrl_c_at_1s(t_s: float, _duration_s: float) -> None:
+        if t_s >= 1.0:
+            signal.raise_signal(signal.SIGINT)
+
+    with VirtualBus(robot) as bus:
+        backend = get_backend_factory(family)(robot, port=bus.port)
+        with pytest.raises(KeyboardInterrupt):
+            play(sine_traj(robot, seconds=4.0), backend, time_scale=FAST, progress=ctrl_c_at_1s)
+        rec = settle_record(bus)
+        assert rec["torque_on"].any() and not any(s.torque_on for s in bus.servos)
+        assert backend.torque_off_attempted and not backend.is_connected
+        rest_ticks = np.array([bus.servo(int(i)).get("goal") for i in rec["servo_ids"]])
+        np.testing.assert_allclose(rest_ticks, backend.rad_to_ticks(robot.rest_q_rad)[np.argsort(backend.ids)], atol=1)
+
+
 def test_health_threshold_stops_safely(tmp_path):
     robot = make_robot(tmp_path)
     with VirtualBus(robot) as bus:

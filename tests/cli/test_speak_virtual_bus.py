@@ -40,6 +40,33 @@ def test_speak_on_virtual_bus_ends_at_rest_with_torque_off(robot_name, family, c
     assert "played" in capsys.readouterr().out
 
 
+def test_ctrl_c_during_speak_exits_130_with_torque_off(monkeypatch, capsys):
+    """Ctrl-C (a real SIGINT) half a second into the spoken motion: one error line, exit code 130, the robot back
+    at rest with every servo's torque off."""
+    import signal
+
+    from robogest.trajectory import Trajectory
+
+    sample = Trajectory.sample
+
+    def ctrl_c_at_half_second(self, t_s):
+        if t_s >= 0.5:
+            signal.raise_signal(signal.SIGINT)
+        return sample(self, t_s)
+
+    monkeypatch.setattr(Trajectory, "sample", ctrl_c_at_half_second)
+    robot = find_robot("humanoid_xl430")
+    with VirtualBus(robot) as bus:
+        rc = main(["speak", "Hello there, I wave while I talk.", "--backend", "dynamixel", "--port", bus.port])
+        time.sleep(0.05)
+        rec = bus.record()
+        assert rc == 130 and capsys.readouterr().err.strip().splitlines() == ["robogest: interrupted"]
+        assert rec["torque_on"].any() and not any(s.torque_on for s in bus.servos)
+        backend = get_backend_factory("dynamixel")(robot, port=bus.port)
+        rest = backend.rad_to_ticks(robot.rest_q_rad)[np.argsort(backend.ids)]
+        np.testing.assert_allclose([bus.servo(int(i)).get("goal") for i in rec["servo_ids"]], rest, atol=1)
+
+
 def test_speak_with_five_percent_faults_finishes_safely(capsys):
     robot = find_robot("humanoid_xl430")
     with VirtualBus(robot, "noreply=0.03,badcrc=0.02,seed=3") as bus:
