@@ -238,11 +238,6 @@ class MujocoBackend(Backend):
             "q_rad": np.array(self._log_q).reshape(-1, j),
         }
 
-    def self_contacts(self) -> int:
-        """Active contacts between two robot parts right now."""
-        sim, data = self._need()
-        return _robot_contacts(sim, data)
-
 
 @dataclass
 class SimReport:

@@ -23,7 +23,6 @@ if _headless():
 
 import contextlib  # noqa: E402
 import tempfile  # noqa: E402
-import time  # noqa: E402
 from fractions import Fraction  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import TYPE_CHECKING  # noqa: E402
@@ -167,10 +166,6 @@ class VideoWriter:
         self._audio_stream = stream
         self._audio_chunk = 1024  # AAC frame size
 
-    @property
-    def audio_duration_s(self) -> float:
-        return 0.0 if self._audio is None else len(self._audio) / self._audio_rate
-
     def _push_audio(self, until_s: float | None) -> None:
         import av
 
@@ -272,17 +267,3 @@ def render_png(
     with atomic_path(path, ".png") as tmp:
         mpimg.imsave(tmp, rgb, format="png")
     return path
-
-
-def time_render(model: mujoco.MjModel, data: mujoco.MjData, width: int = 320, height: int = 240, n: int = 10) -> float:
-    """Mean seconds per rendered frame (for reports and the benchmark)."""
-    renderer = make_renderer(model, width, height)
-    try:
-        cam = camera_id(model)
-        render_frame(renderer, data, cam)
-        t0 = time.perf_counter()
-        for _ in range(n):
-            render_frame(renderer, data, cam)
-        return (time.perf_counter() - t0) / n
-    finally:
-        renderer.close()

@@ -34,11 +34,6 @@ class RetargetResult:
     direction_error_rad: np.ndarray
     collision_frames: np.ndarray | None = None
 
-    @property
-    def mean_error_rad(self) -> np.ndarray:
-        """Weighted-free mean direction error per frame, ``(T,)`` radians."""
-        return self.direction_error_rad.mean(axis=1)
-
 
 class Retargeter(ABC):
     """Maps human motion onto one robot."""
