@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-from robogest.cli.common import add_speech_args, speech_from_args
+from robogest.cli.common import add_json_flag, add_speech_args, print_json, speech_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -19,7 +18,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("audio_file", nargs="?", metavar="AUDIO", help="audio file (or use --text)")
     add_speech_args(p, text_positional=False)
     p.add_argument("--save-features", metavar="FILE.npz", help="write mel, MFCC, RMS, pitch, word features, beats")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    add_json_flag(p)
     p.set_defaults(func=run_analyze)
 
     g = sub.add_parser(
@@ -44,13 +43,14 @@ def run_analyze(args: argparse.Namespace) -> int:
     args.audio = args.audio or args.audio_file
     speech = speech_from_args(args)
     summary = speech_summary(speech)
-    if args.json:
-        print(json.dumps(summary, indent=2, default=float))
-    else:
-        for k, v in summary.items():
-            print(f"{k:>24}: {v}")
     if args.save_features:
         save_features(speech, args.save_features)
+    if args.json:
+        print_json({**summary, "features_file": args.save_features})
+        return 0
+    for k, v in summary.items():
+        print(f"{k:>24}: {v}")
+    if args.save_features:
         print(f"features written to {args.save_features}")
     return 0
 
