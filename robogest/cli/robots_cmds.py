@@ -43,8 +43,9 @@ def cmd_list(args: argparse.Namespace) -> int:
         try:
             r = find_robot(str(path))
         except ConfigError as e:  # one broken YAML must not hide the others
-            entry["error"] = str(e).splitlines()[-1].strip()
-            table.rows.append([escape(name), "-", "-", f"[red]invalid:[/red] {escape(entry['error'])}"])
+            entry["error"] = str(e)
+            last = str(e).splitlines()[-1].strip()
+            table.rows.append([escape(name), "-", "-", f"[red]invalid:[/red] {escape(last)}"])
             entries.append(entry)
             continue
         entry.update(
