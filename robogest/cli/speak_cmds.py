@@ -31,6 +31,12 @@ def _add_output_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--baud", type=int, help="baud rate (default: the robot YAML's bus.baudrate)")
     p.add_argument("--fps", type=float, default=50.0, help="command rate, Hz (default: %(default)s)")
     p.add_argument("--save", metavar="FILE.npz", help="write the final command trajectory (and the audio as .wav)")
+    p.add_argument(
+        "--export",
+        metavar="FILE",
+        help="also write the command trajectory for other tools: FILE.mcap (ROS 2 bag), FILE.csv, or a "
+        "name without suffix (ROS 2 bag folder); times on the speech audio's clock",
+    )
     p.add_argument("--video", metavar="FILE.mp4", help="render the simulated robot with the speech audio (sim)")
     p.add_argument("--plot", metavar="FILE.png", help="plot wrist trajectories, beats, silent spans, joint commands")
     p.add_argument("--realtime", action="store_true", help="run the simulation in real time (sim)")
@@ -80,6 +86,10 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
     if args.save:
         traj.save(args.save)
         lines.append(f"trajectory: {args.save} ({traj.n_frames} frames at {traj.fps:g} Hz, {traj.duration_s:.2f} s)")
+    if args.export:
+        from robogest.trajectory.export import export_trajectory
+
+        lines.append(f"exported: {export_trajectory(traj, args.export)}")
     if args.backend == "sim":
         from robogest.backends.mujoco_sim import simulate
 
