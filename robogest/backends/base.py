@@ -71,8 +71,9 @@ class Backend(ABC):
 
 
 BackendFactory = Callable[..., Backend]
-#: Backends by name; each factory takes ``(robot, port=None, baudrate=None, **options)``.
-BACKENDS: Registry[BackendFactory] = Registry("backend")
+#: Backends by name; each factory takes ``(robot, port=None, baudrate=None, **options)``. Installed packages
+#: add more through the ``robogest.backends`` entry-point group.
+BACKENDS: Registry[BackendFactory] = Registry("backend", entry_point_group="robogest.backends")
 register_backend = BACKENDS.register
 backend_names = BACKENDS.names
 get_backend_factory = BACKENDS.get

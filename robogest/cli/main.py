@@ -15,7 +15,8 @@ import importlib
 import io
 import os
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
 
 from robogest.errors import RobogestError
 
@@ -92,7 +93,23 @@ def _quiet_stdout() -> None:
         pass
 
 
+def _one_line_warnings(show: Callable[..., None]) -> Callable[..., None]:
+    """``warnings.showwarning`` printing robogest's own warnings as one ``robogest: warning: ...`` line."""
+
+    def show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+        from robogest.errors import RobogestWarning
+
+        if issubclass(category, RobogestWarning):
+            print(f"robogest: warning: {message}", file=sys.stderr if file is None else file)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    return show_warning
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    previous = warnings.showwarning
+    warnings.showwarning = _one_line_warnings(previous)
     if not sys.stdout.isatty() and isinstance(sys.stdout, io.TextIOWrapper):
         sys.stdout.reconfigure(line_buffering=True)  # a pipe sees each line when it is printed
     try:
@@ -100,6 +117,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:
         _quiet_stdout()
         return EXIT_BROKEN_PIPE
+    finally:
+        warnings.showwarning = previous
 
 
 def _run(argv: Sequence[str] | None) -> int:
