@@ -80,16 +80,23 @@ def _report(result_lines: list[str]) -> None:
         print(line)
 
 
-def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr: int) -> list[str]:
-    """Save, then play on the chosen backend; returns report lines."""
-    lines = []
+def _check_export(args: argparse.Namespace) -> None:
+    """A bad --export (name, existing folder, rosbags missing) fails before anything is computed or moves."""
+    if args.export:
+        from robogest.trajectory.export import check_export
+
+        check_export(args.export)
+
+
+def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr: int) -> None:
+    """Save, export, then play on the chosen backend, printing each result as soon as it is known."""
     if args.save:
         traj.save(args.save)
-        lines.append(f"trajectory: {args.save} ({traj.n_frames} frames at {traj.fps:g} Hz, {traj.duration_s:.2f} s)")
+        print(f"trajectory: {args.save} ({traj.n_frames} frames at {traj.fps:g} Hz, {traj.duration_s:.2f} s)")
     if args.export:
         from robogest.trajectory.export import export_trajectory
 
-        lines.append(f"exported: {export_trajectory(traj, args.export)}")
+        print(f"exported: {export_trajectory(traj, args.export)}")
     if args.backend == "sim":
         from robogest.backends.mujoco_sim import simulate
 
@@ -98,11 +105,9 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
                 traj, robot, video_path=args.video, audio=audio, audio_sr=sr, realtime=args.realtime,
                 view=args.view, progress=cb,
             )  # fmt: skip
-        lines.append(
-            f"sim tracking error: RMS {rep.tracking_rms_deg_overall:.2f} deg, max {rep.max_abs_error_deg:.2f} deg"
-        )
+        print(f"sim tracking error: RMS {rep.tracking_rms_deg_overall:.2f} deg, max {rep.max_abs_error_deg:.2f} deg")
         if args.video:
-            lines.append(f"video: {args.video}")
+            print(f"video: {args.video}")
     else:
         from robogest.backends import get_backend_factory
         from robogest.backends.player import play
@@ -110,11 +115,10 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
         backend = get_backend_factory(args.backend)(robot, **_backend_options(args))
         with progress_bar("playing") as cb:
             rep = play(traj, backend, rate_hz=args.fps, audio=audio, audio_sr=sr, progress=cb)
-        lines.append(
+        print(
             f"played {rep.n_ticks} ticks; period p50 {rep.p50_period_ms:.2f} ms, p99 {rep.p99_period_ms:.2f} ms, "
             f"late ticks {rep.late_ticks}, bus retries {rep.retries}, missed reads {rep.missed_reads}"
         )
-    return lines
 
 
 def run_speak(args: argparse.Namespace) -> int:
@@ -124,6 +128,7 @@ def run_speak(args: argparse.Namespace) -> int:
 
     if args.checkpoint and args.generator == "rhythm":
         raise InputError("--checkpoint is for learned generators; the default 'rhythm' generator needs none")
+    _check_export(args)
     robot = find_robot(args.robot)
     speech = speech_from_args(args)
     opts = {"checkpoint": args.checkpoint} if args.checkpoint else {}
@@ -142,8 +147,8 @@ def run_speak(args: argparse.Namespace) -> int:
 
         plot_motion(args.plot, result.motion, speech, traj)
         lines.append(f"plot: {args.plot}")
-    lines += _finish(args, robot, traj, speech.audio, speech.sr)
-    _report(lines)
+    _report(lines)  # before the (long) playback, so a pipe or log sees it at once
+    _finish(args, robot, traj, speech.audio, speech.sr)
     return 0
 
 
@@ -154,6 +159,7 @@ def run_play(args: argparse.Namespace) -> int:
     from robogest.safety import check_limits
     from robogest.trajectory import Trajectory
 
+    _check_export(args)
     robot = find_robot(args.robot)
     path = Path(args.motion)
     if not path.is_file():
@@ -190,6 +196,6 @@ def run_play(args: argparse.Namespace) -> int:
         motion = load_motion(path)
         traj, _, _ = motion_to_trajectory(motion, robot, fps=args.fps, audio_path=args.audio or "")
     lines = [f"motion: {path} -> {traj.n_frames} commands at {traj.fps:g} Hz for {robot.name}"]
-    lines += _finish(args, robot, traj, audio, sr)
     _report(lines)
+    _finish(args, robot, traj, audio, sr)
     return 0

@@ -32,6 +32,26 @@ COMMANDS_TOPIC = "/robogest/joint_commands"
 EXPORT_FORMATS = "FILE.mcap (ROS 2 bag, one file), FILE.csv, or a name without suffix (ROS 2 bag folder)"
 
 
+def export_format(path: str | Path) -> str:
+    """``"csv"``, ``"mcap"`` or ``"bag"`` (folder) for ``path``; raises :class:`InputError` for anything else."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix in (".csv", ".mcap"):
+        return suffix[1:]
+    if suffix:
+        raise InputError(f"--export {path}: unknown format {path.suffix!r}; write {EXPORT_FORMATS}")
+    if path.exists():
+        raise InputError(f"--export {path}: already exists; a bag folder is never overwritten, choose a new name")
+    return "bag"
+
+
+def check_export(path: str | Path) -> None:
+    """Everything :func:`export_trajectory` could refuse (name, existing folder, missing rosbags), checked
+    before any motion starts so a wrong ``--export`` fails at once rather than after playback."""
+    if export_format(path) in ("mcap", "bag"):
+        _rosbags()
+
+
 def export_trajectory(traj: Trajectory, path: str | Path) -> Path:
     """Write ``traj`` to ``path``; the format follows the name (see :data:`EXPORT_FORMATS`).
 
@@ -39,15 +59,8 @@ def export_trajectory(traj: Trajectory, path: str | Path) -> Path:
     overwritten). Returns the path written.
     """
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".csv":
-        write_csv(traj, path)
-    elif suffix == ".mcap":
-        write_mcap(traj, path)
-    elif suffix == "":
-        write_bag_folder(traj, path)
-    else:
-        raise InputError(f"--export {path}: unknown format {path.suffix!r}; write {EXPORT_FORMATS}")
+    writer = {"csv": write_csv, "mcap": write_mcap, "bag": write_bag_folder}[export_format(path)]
+    writer(traj, path)
     return path
 
 
@@ -116,8 +129,7 @@ def _write_bag(traj: Trajectory, folder: Path) -> None:
 
 def write_bag_folder(traj: Trajectory, folder: Path) -> None:
     """A rosbag2 folder for ``ros2 bag play FOLDER``; refuses to touch an existing path."""
-    if folder.exists():
-        raise InputError(f"--export {folder}: already exists; a bag folder is never overwritten, choose a new name")
+    export_format(folder)  # refuses an existing path
     folder.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f".{folder.name}.", dir=folder.parent) as tmp:
         staged = Path(tmp) / folder.name

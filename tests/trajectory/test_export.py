@@ -115,3 +115,19 @@ def test_speak_missing_rosbags_is_exit_6(tmp_path, capsys, monkeypatch):
     assert main(["speak", "Hi.", "--export", str(tmp_path / "x.mcap")]) == 6
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "pip install 'robogest[ros]'" in err[0]
+
+
+def test_bad_export_fails_before_anything_runs(tmp_path, capsys, monkeypatch):
+    import robogest.pipeline
+
+    def must_not_run(*a, **k):
+        raise AssertionError("the pipeline ran before --export was checked")
+
+    monkeypatch.setattr(robogest.pipeline, "speak", must_not_run)
+    (tmp_path / "old_bag").mkdir()
+    assert main(["speak", "Hi.", "--export", str(tmp_path / "t.txt")]) == 2
+    assert main(["speak", "Hi.", "--export", str(tmp_path / "old_bag")]) == 2
+    monkeypatch.setitem(sys.modules, "rosbags.rosbag2", None)
+    assert main(["speak", "Hi.", "--export", str(tmp_path / "t.mcap")]) == 6
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 3 and "unknown format '.txt'" in err[0] and "already exists" in err[1]
