@@ -26,7 +26,9 @@ the robot is sent to rest and torque is turned off.
 def _add_output_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robot", default=DEFAULT_ROBOT, help="robot name from `robogest robots list`, or a YAML path "
                    "(default: %(default)s)")  # fmt: skip
-    p.add_argument("--backend", default="sim", help="sim (MuJoCo, default), dynamixel or feetech")
+    p.add_argument(
+        "--backend", default="sim", help="sim (MuJoCo, default), dynamixel, feetech, or an installed plugin's backend"
+    )
     p.add_argument("--port", help="serial port for dynamixel/feetech (default: the robot YAML's bus.port)")
     p.add_argument("--baud", type=int, help="baud rate (default: the robot YAML's bus.baudrate)")
     p.add_argument("--fps", type=float, default=50.0, help="command rate, Hz (default: %(default)s)")
@@ -53,7 +55,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_speech_args(p)
-    p.add_argument("--generator", default="rhythm", help="gesture generator (default: %(default)s)")
+    p.add_argument(
+        "--generator",
+        default="rhythm",
+        help="gesture generator: rhythm, gesticulator, rhythmic, s2ag, or an installed plugin's (default: %(default)s)",
+    )
     p.add_argument("--checkpoint", metavar="FILE", help="trained weights for a learned generator")
     p.add_argument("--seed", type=int, default=0, help="random seed; same input + seed = same motion")
     _add_output_args(p)
