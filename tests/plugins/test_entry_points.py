@@ -83,6 +83,7 @@ class MemoryBackend(Backend):
 @pytest.fixture(scope="module")
 def plugin_site(tmp_path_factory) -> Path:
     """The plugin package, built and installed with pip into its own folder (put on sys.path by the test)."""
+    pytest.importorskip("setuptools", minversion="70.1", reason="the dev extras install it: pip install -e '.[dev]'")
     root = tmp_path_factory.mktemp("plugin")
     src = root / "src"
     (src / "robogest_demo_plugin").mkdir(parents=True)
