@@ -11,7 +11,6 @@ Search order (the first folder holding ``NAME.yaml`` wins on a name clash):
 from __future__ import annotations
 
 import os
-from importlib.resources import files
 from pathlib import Path
 
 from robogest.errors import ConfigError
@@ -27,6 +26,8 @@ def robots_dir() -> Path:
     The wheel carries the repository's ``robots/`` and ``sim/`` as ``robogest/_assets/`` (see ``setup.py``);
     a source checkout (editable install, PYTHONPATH) has no ``_assets`` and keeps them beside the package.
     """
+    from importlib.resources import files
+
     package = Path(str(files("robogest")))
     installed = package / "_assets" / "robots"
     return installed if installed.is_dir() else package.parent / "robots"
