@@ -36,7 +36,8 @@ EPILOG = """exit codes:
   141 stdout closed before the output ended (e.g. `| head`); ends quietly
 
 When stdout is a pipe or file: tables are tab-separated lines, each line is written as soon as it is
-printed, and `--json` (robots list/show, analyze) prints JSON.
+printed, and `--json` (robots list/show, analyze) prints JSON. Progress goes to stderr (plain lines
+when it is not a terminal).
 """
 
 #: Exit status for a closed stdout: 128 + SIGPIPE, what a shell reports for a command killed by SIGPIPE.
