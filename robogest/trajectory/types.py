@@ -144,13 +144,13 @@ def check_matches(trajectory: Trajectory, robot: RobotConfig, where: str = "") -
         if not same.all():
             j = int(np.flatnonzero(~same)[0])
             raise InputError(
-                f"{where}: key {key} of joint {robot.joint_names[j]} is {theirs[j]!r} but {mine[j]!r} in robot "
-                f"{robot.name}'s definition (limits come from the robot, never the file); {fix}"
+                f"{where}: key {key} of joint {robot.joint_names[j]} is {float(theirs[j])!r} but {float(mine[j])!r} "
+                f"in robot {robot.name}'s definition (limits come from the robot, never the file); {fix}"
             )
     bad = ~np.isfinite(np.asarray(trajectory.q_rad, dtype=float))
     if bad.any():
         k, j = (int(i) for i in np.argwhere(bad)[0])
         raise InputError(
-            f"{where}: command q_rad[{k}] of joint {robot.joint_names[j]} is {trajectory.q_rad[k, j]!r}, "
+            f"{where}: command q_rad[{k}] of joint {robot.joint_names[j]} is {float(trajectory.q_rad[k, j])!r}, "
             f"not a finite angle ({int(bad.sum())} such values); {fix}"
         )
