@@ -27,8 +27,21 @@ GOAL_POS_TOL_RAD = 1e-9
 GOAL_STEP_RTOL, GOAL_STEP_ATOL_RAD = 1e-6, 1e-9
 
 
+def guard_limits(robot: RobotConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(q_min_rad, q_max_rad, v_max_rad_s)``, each ``(J,)``, read-only: what :func:`check_goal` compares with."""
+    arrays = (robot.q_min_rad, robot.q_max_rad, robot.v_max_rad_s)
+    for a in arrays:
+        a.setflags(write=False)
+    return arrays
+
+
 def check_goal(
-    q_rad: np.ndarray, robot: RobotConfig, reference_rad: np.ndarray, period_s: float, source: str = ""
+    q_rad: np.ndarray,
+    robot: RobotConfig,
+    reference_rad: np.ndarray,
+    period_s: float,
+    source: str = "",
+    limits: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """The goal guard: return ``q_rad`` as a float array, or raise if any joint's goal is unsafe.
 
@@ -45,6 +58,8 @@ def check_goal(
         Control period: the time the joint has to make the step.
     source : str
         Where the goal came from, for the message.
+    limits : tuple, optional
+        ``guard_limits(robot)``, when the caller keeps it (building the arrays costs more than the check).
 
     Raises
     ------
@@ -53,22 +68,23 @@ def check_goal(
     SafetyError
         One line naming every offending joint, its value and the limit it breaks.
     """
-    names = robot.joint_names
+    lo, hi, v_max = limits if limits is not None else guard_limits(robot)
     try:
         q = np.array(q_rad, dtype=float)
     except (TypeError, ValueError):
-        raise InputError(f"goal for {robot.name} is not a numeric array of {len(names)} joint angles") from None
-    if q.shape != (len(names),):
-        raise InputError(f"goal has shape {q.shape}; expected ({len(names)},) joint angles for {robot.name}")
-    lo, hi, v_max = robot.q_min_rad, robot.q_max_rad, robot.v_max_rad_s
+        raise InputError(f"goal for {robot.name} is not a numeric array of {lo.size} joint angles") from None
+    if q.shape != lo.shape:
+        raise InputError(f"goal has shape {q.shape}; expected ({lo.size},) joint angles for {robot.name}")
     step_max = v_max * period_s
-    with np.errstate(invalid="ignore"):
-        step = np.abs(q - np.asarray(reference_rad, dtype=float))
-        bad_value = ~np.isfinite(q)
-        bad_pos = ~bad_value & ((q < lo - GOAL_POS_TOL_RAD) | (q > hi + GOAL_POS_TOL_RAD))
-        bad_step = ~bad_value & ~bad_pos & ~(step <= step_max * (1 + GOAL_STEP_RTOL) + GOAL_STEP_ATOL_RAD)
-    if not (bad_value.any() or bad_pos.any() or bad_step.any()):
+    step = np.abs(q - reference_rad)  # NaN/inf in q give NaN/inf here, no warning
+    ok = (q >= lo - GOAL_POS_TOL_RAD) & (q <= hi + GOAL_POS_TOL_RAD)
+    ok &= step <= step_max * (1 + GOAL_STEP_RTOL) + GOAL_STEP_ATOL_RAD
+    if ok.all():  # every comparison with NaN is False, so a finite, in-range, slow goal is the only way here
         return q
+    names = robot.joint_names
+    bad_value = ~np.isfinite(q)
+    bad_pos = ~bad_value & ((q < lo - GOAL_POS_TOL_RAD) | (q > hi + GOAL_POS_TOL_RAD))
+    bad_step = ~bad_value & ~bad_pos & ~ok
     problems = []
     for j in np.flatnonzero(bad_value | bad_pos | bad_step):
         if bad_value[j]:
@@ -105,6 +121,7 @@ class Backend(ABC):
         #: The last goal that passed the guard and was sent, ``(J,)`` radians; None before the first one.
         self.last_goal_rad: np.ndarray | None = None
         self._connect_pose_rad: np.ndarray | None = None
+        self._limits = guard_limits(robot)  # the robot is frozen: build its limit arrays once
 
     @property
     def joint_names(self) -> list[str]:
@@ -140,7 +157,7 @@ class Backend(ABC):
         A refused goal raises :class:`~robogest.errors.SafetyError` and nothing is written; ``last_goal_rad``
         stays the last goal actually sent, which is where the shutdown ramp to rest starts.
         """
-        q = check_goal(q_rad, self.robot, self._goal_reference(), self.control_period_s, source)
+        q = check_goal(q_rad, self.robot, self._goal_reference(), self.control_period_s, source, self._limits)
         self._send_goal(q)
         self.last_goal_rad = q.copy()
 

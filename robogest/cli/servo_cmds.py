@@ -50,8 +50,9 @@ def register(subparsers: Any) -> None:
         )
         p.add_argument("--port", required=True)
         p.add_argument("--id", type=int, required=True)
-        p.add_argument("--protocol", choices=_PROTOCOLS, default=None, help="default: the --robot's, else dxl2")
-        p.add_argument("--baud", type=int, default=None, help="default: the --robot's bus.baudrate, else 1000000")
+        robot_s = "the --robot's, else " if name == "write" else ""
+        p.add_argument("--protocol", choices=_PROTOCOLS, default=None, help=f"default: {robot_s}dxl2")
+        p.add_argument("--baud", type=int, default=None, help=f"default: {robot_s}1000000")
         if name == "write":
             p.add_argument("--robot", help="robot name or YAML path: goal positions are checked against its limits")
         if name != "ping":

@@ -53,9 +53,11 @@ class GoalLog:
         return backend.ticks_to_rad(np.array(cols, dtype=np.int64).T.reshape(-1, len(cols)))
 
 
-def make_goal(kind: str, j: int, x: float, frac: list[float], last: np.ndarray, robot) -> np.ndarray:
+def make_goal(
+    kind: str, j: int, x: float, frac: list[float], last: np.ndarray, robot, rate_hz: float = RATE_HZ
+) -> np.ndarray:
     """A goal of the given kind after ``last``: legal ones move each joint by ``frac`` of its per-tick limit."""
-    lo, hi, step = robot.q_min_rad, robot.q_max_rad, robot.v_max_rad_s / RATE_HZ
+    lo, hi, step = robot.q_min_rad, robot.q_max_rad, robot.v_max_rad_s / rate_hz
     q = np.clip(last + np.asarray(frac) * step, lo, hi)
     if kind == "nan":
         q[j] = np.nan
@@ -78,10 +80,10 @@ def steps_strategy(n_joints: int):
     return st.lists(one, min_size=1, max_size=8)
 
 
-def drive(backend: Backend, steps, advance) -> tuple[np.ndarray, SafetyError | None]:
+def drive(backend: Backend, steps, advance, rate_hz: float = RATE_HZ) -> tuple[np.ndarray, SafetyError | None]:
     """Connect, hold the present pose, torque on, send ``steps`` until one is refused; always shut down."""
     robot = backend.robot
-    backend.set_control_rate(RATE_HZ)
+    backend.set_control_rate(rate_hz)
     backend.connect()
     start = backend.read_positions()
     refused = None
@@ -90,7 +92,7 @@ def drive(backend: Backend, steps, advance) -> tuple[np.ndarray, SafetyError | N
         backend.set_torque(True)
         last = start
         for kind, j, x, frac in steps:
-            q = make_goal(kind, j, x, frac, last, robot)
+            q = make_goal(kind, j, x, frac, last, robot, rate_hz)
             try:
                 backend.write_goal(q)
             except SafetyError as e:
@@ -110,12 +112,14 @@ def drive(backend: Backend, steps, advance) -> tuple[np.ndarray, SafetyError | N
     return start, refused
 
 
-def assert_safe_goal_sequence(goals: np.ndarray, start: np.ndarray, robot, tol_rad: float) -> None:
+def assert_safe_goal_sequence(
+    goals: np.ndarray, start: np.ndarray, robot, tol_rad: float, rate_hz: float = RATE_HZ
+) -> None:
     """Every goal finite, in limits, within the per-tick velocity bound from the previous one (from ``start``)."""
     assert np.all(np.isfinite(goals))
     assert np.all(goals >= robot.q_min_rad - tol_rad) and np.all(goals <= robot.q_max_rad + tol_rad)
     steps = np.abs(np.diff(np.vstack([start, goals]), axis=0))
-    assert np.all(steps <= robot.v_max_rad_s / RATE_HZ + tol_rad), steps.max(axis=0)
+    assert np.all(steps <= robot.v_max_rad_s / rate_hz + tol_rad), steps.max(axis=0)
 
 
 # --- the guard itself ---------------------------------------------------------------------------------------------
@@ -170,12 +174,13 @@ SIM_ROBOT = find_robot("humanoid_xl430")
 
 
 @settings(max_examples=25, deadline=None)
-@given(steps=steps_strategy(len(SIM_ROBOT.joints)))
-def test_sim_backend_sends_only_safe_goals(steps):
+@given(steps=steps_strategy(len(SIM_ROBOT.joints)), rate_hz=st.sampled_from([20.0, 50.0, 200.0]))
+def test_sim_backend_sends_only_safe_goals(steps, rate_hz):
+    """At any control rate: the guard's bound and the shutdown ramp both follow it."""
     b = MujocoBackend(SIM_ROBOT)
-    start, _ = drive(b, steps, lambda: b.advance(1.0 / RATE_HZ))
+    start, _ = drive(b, steps, lambda: b.advance(1.0 / rate_hz), rate_hz)
     goals = b.log["goal_rad"]
-    assert_safe_goal_sequence(goals, start, SIM_ROBOT, tol_rad=1e-9)
+    assert_safe_goal_sequence(goals, start, SIM_ROBOT, tol_rad=1e-9, rate_hz=rate_hz)
     np.testing.assert_allclose(goals[-1], SIM_ROBOT.rest_q_rad, atol=1e-12)  # ended at rest
     assert b._torque is False and b.sim is None  # torque off, disconnected
 
