@@ -53,7 +53,7 @@ def check_goal(
     q_rad : ndarray [shape=(J,)], radians
     robot : RobotConfig
     reference_rad : ndarray [shape=(J,)], radians
-        The last goal sent (or the pose read at connect, before the first goal).
+        The last goal sent (before the first one: the present pose).
     period_s : float, seconds
         Control period: the time the joint has to make the step.
     source : str
@@ -120,7 +120,6 @@ class Backend(ABC):
         self.control_rate_hz = 50.0
         #: The last goal that passed the guard and was sent, ``(J,)`` radians; None before the first one.
         self.last_goal_rad: np.ndarray | None = None
-        self._connect_pose_rad: np.ndarray | None = None
         self._limits = guard_limits(robot)  # the robot is frozen: build its limit arrays once
 
     @property
@@ -165,18 +164,16 @@ class Backend(ABC):
     def _send_goal(self, q_rad: np.ndarray) -> None:
         """Write joint angles ``(J,)``, radians, that the guard accepted (finite, in limits, in speed)."""
 
-    def _connected_at(self, q_rad: np.ndarray) -> None:
-        """Subclasses call this from :meth:`connect` with the pose read there: the guard's first reference."""
-        self._connect_pose_rad = np.array(q_rad, dtype=float)
+    def _connected(self) -> None:
+        """Subclasses call this at the end of :meth:`connect`: goals sent before do not count any more."""
         self.last_goal_rad = None
 
     def _goal_reference(self) -> np.ndarray:
-        """The pose the next goal is a step from: the last goal sent, else the pose read at connect."""
+        """The pose the next goal is a step from: the last goal sent; before the first one after connecting, the
+        present pose, read now (the robot may have been moved by hand since connect while torque was off)."""
         if self.last_goal_rad is not None:
             return self.last_goal_rad
-        if self._connect_pose_rad is None:
-            self._connect_pose_rad = np.array(self.read_positions(), dtype=float)
-        return self._connect_pose_rad
+        return np.array(self.read_positions(), dtype=float)
 
     def rest_ramp(self) -> np.ndarray:
         """Goals ``(K, J)``, radians, one per control period, from the last goal sent to the rest pose.

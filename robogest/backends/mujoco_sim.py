@@ -149,7 +149,7 @@ class MujocoBackend(Backend):
         self._goal = self.data.ctrl[self.sim.act_idx].copy()
         self._t_target = 0.0
         self.set_torque(True)
-        self._connected_at(self.read_positions())
+        self._connected()
 
     def _need(self) -> tuple[SimModel, mujoco.MjData]:
         if self.sim is None or self.data is None:

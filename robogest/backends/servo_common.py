@@ -442,7 +442,8 @@ class ServoBackend(Backend):
             self._budget = self.tick_retry_budget
             self._positions_known = False
             self._next_health = time.monotonic() + self.health_period_s / max(1, len(self.ids))
-            self._connected_at(self.read_positions())
+            self.read_positions()
+            self._connected()
         except BaseException:
             self._safe_close()
             raise

@@ -322,3 +322,42 @@ def test_servo_write_goal_position_checks_the_robots_limits(tmp_path, monkeypatc
         assert main(["servo", "write", "--port", bus.port, "--id", "9", "--robot", "wbot", "--register",
                      "goal_position", "--value", "2048"]) == 2  # fmt: skip
         assert "servo id 9 is not in robot wbot" in capsys.readouterr().err
+
+
+# --- the reference pose and the shutdown ------------------------------------------------------------------------
+def test_first_goal_after_connect_is_a_step_from_the_present_pose():
+    """Moved by hand while torque was off: the first goal must be near where the robot is now, not where it was."""
+    robot = SIM_ROBOT
+    j = robot.joint_names.index("head_pan")
+    b = MujocoBackend(robot)
+    b.connect()
+    try:
+        b.set_torque(False)
+        b.data.qpos[b.sim.qpos_idx[j]] = 0.6  # pushed by hand
+        b.advance(0.0)
+        here = b.read_positions()
+        with pytest.raises(SafetyError, match=r"head_pan steps 0\.6\d* rad"):
+            b.write_goal(robot.rest_q_rad)  # where it was at connect: a jump from where it is
+        b.write_goal(here)
+        b.set_torque(True)
+        b.connect()  # reconnecting forgets the last goal: the reference is read again
+        assert b.last_goal_rad is None
+    finally:
+        b.shutdown()
+    np.testing.assert_allclose(b.log["goal_rad"][-1], robot.rest_q_rad, atol=1e-12)
+
+
+def test_shutdown_outside_the_limits_turns_torque_off_without_an_unsafe_goal(tmp_path):
+    """Torque on with the robot outside its limits and no goal sent: no guarded ramp exists, so shutdown writes no
+    goal, says why, and still turns torque off."""
+    robot = make_robot(tmp_path)
+    start = np.array([robot.q_max_rad[0] + 0.3, 0.0, 0.0])
+    with VirtualBus(robot, start_q_rad=start) as bus:
+        log = GoalLog(bus)
+        backend = get_backend_factory("dynamixel")(robot, port=bus.port, health_hz=0)
+        backend.connect()
+        backend.set_torque(True)
+        backend.shutdown()
+        assert all(len(v) == 0 for v in log.ticks.values())
+        assert not any(s.torque_on for s in bus.servos)
+        assert any(e.startswith("shutdown: unsafe goal") and "j0 steps" in e for e in backend.events), backend.events
