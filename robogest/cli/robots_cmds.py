@@ -33,6 +33,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     add_check_parser(sub)
 
+    from robogest.cli.robot_files_cmds import add_parsers
+
+    add_parsers(sub)
+
 
 def cmd_list(args: argparse.Namespace) -> int:
     console = Console()
