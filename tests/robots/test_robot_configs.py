@@ -16,7 +16,7 @@ from robogest.robot.registry import DEFAULT_ROBOT, find_robot, list_robots
 from robogest.robot.validate import NO_LOAD_RAD_S, validate_robot
 
 ROBOTS = sorted(list_robots())
-EXPECTED = {"humanoid_xl430", "humanoid_sts3215", "desk_arm_sts3215"}
+EXPECTED = {"humanoid_xl430", "humanoid_sts3215", "desk_arm_sts3215", "so101_sts3215"}
 
 
 def _model(robot):
@@ -56,7 +56,8 @@ def test_mass_and_size_plausible(name):
     assert 0.5 < robot_mass < 5.0
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
-    assert 0.25 < d.site_xpos[:, 2].max() < 0.6, "a desk-sized robot"
+    reach = np.linalg.norm(d.site_xpos - d.xpos[1], axis=1).max()  # farthest site from the robot's root, joints at 0
+    assert 0.25 < reach < 0.6, "a desk-sized robot"
 
 
 def _site(m, d, name):
