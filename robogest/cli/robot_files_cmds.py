@@ -15,6 +15,17 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("robot", help="robot name or YAML path")
     p.set_defaults(func=cmd_validate)
 
+    p = sub.add_parser(
+        "import-urdf",
+        help="make a robot from a URDF: MJCF with sites, servos, home keyframe and scene, plus a YAML to edit",
+    )
+    p.add_argument("urdf", type=Path, help="the robot's URDF (meshes: STL/OBJ next to or above it)")
+    p.add_argument("--out", type=Path, required=True, help="robot YAML to write, e.g. robots/my_arm.yaml (the MJCF "
+                   "goes to sim/NAME/ beside a robots/ folder, else to NAME/ beside the YAML)")  # fmt: skip
+    p.add_argument("--name", help="robot name (default: the YAML file's name)")
+    p.add_argument("--force", action="store_true", help="overwrite existing output files")
+    p.set_defaults(func=cmd_import_urdf)
+
 
 def report_validation(name_or_path: str | Path) -> int:
     """Print every problem (file, key, fix) or one line saying the robot passed; ConfigError when any problem."""
@@ -31,3 +42,14 @@ def report_validation(name_or_path: str | Path) -> int:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     return report_validation(args.robot)
+
+
+def cmd_import_urdf(args: argparse.Namespace) -> int:
+    from robogest.robot.urdf_import import import_urdf
+
+    res = import_urdf(args.urdf, args.out, name=args.name, overwrite=args.force)
+    print(f"wrote {res.yaml_path}, {res.mjcf_path}, {res.scene_path}")
+    print("guessed (edit the YAML and the MJCF to change it):")
+    for g in res.guesses:
+        print(f"  - {g}")
+    return report_validation(res.yaml_path)
