@@ -26,6 +26,20 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
     p.set_defaults(func=cmd_import_urdf)
 
+    p = sub.add_parser(
+        "import-lerobot-calibration",
+        help="servo zero offsets, directions and limits from a LeRobot calibration file, into a copy of a robot YAML",
+    )
+    p.add_argument(
+        "calibration", type=Path, help="LeRobot calibration .json (~/.cache/huggingface/lerobot/calibration)"
+    )
+    p.add_argument("--robot", required=True, help="robot name or YAML path whose servos it calibrates")
+    p.add_argument(
+        "--out", type=Path, help="calibrated YAML to write (default: NAME_calibrated.yaml beside the robot's)"
+    )
+    p.add_argument("--force", action="store_true", help="overwrite an existing --out")
+    p.set_defaults(func=cmd_import_lerobot_calibration)
+
 
 def report_validation(name_or_path: str | Path) -> int:
     """Print every problem (file, key, fix) or one line saying the robot passed; ConfigError when any problem."""
@@ -53,3 +67,14 @@ def cmd_import_urdf(args: argparse.Namespace) -> int:
     for g in res.guesses:
         print(f"  - {g}")
     return report_validation(res.yaml_path)
+
+
+def cmd_import_lerobot_calibration(args: argparse.Namespace) -> int:
+    from robogest.robot.lerobot_calibration import import_lerobot_calibration
+    from robogest.robot.registry import find_robot
+
+    res = import_lerobot_calibration(args.calibration, find_robot(args.robot), args.out, overwrite=args.force)
+    print(f"wrote {res.path} (the original is unchanged)")
+    for c in res.changes:
+        print(f"  - {c}")
+    return report_validation(res.path)
