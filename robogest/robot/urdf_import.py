@@ -109,59 +109,56 @@ def import_urdf(urdf: str | Path, out_yaml: str | Path, name: str | None = None,
         raise InputError(f"{urdf}: no revolute or continuous joints; robogest drives hinge joints")
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
-    rest = _rest_pose(m, joints, guesses)
     arms = _find_arms(m, d, joints, guesses)
     if not arms:
         raise InputError(f"{urdf}: found no chain of 2 or more joints spaced apart to map a human arm onto")
     velocity = {jn: _urdf_velocity(root, jn) for jn in joints}
     _actuate(mj, m, joints, velocity, guesses)
     vectors = _add_sites(mj, arms)
-    for jn, q in rest.items():
-        d.qpos[m.joint(jn).qposadr[0]] = q
-    mujoco.mj_forward(m, d)
-    flip = _upper_arm_points_up(m, d, arms)
+    if len(arms) == 1:
+        _face_forward(mj, m, d, arms[0], guesses)
+    flip = len(arms) == 1
     if flip:
         guesses.append(
-            "the upper arm points up at rest, as a desk arm's does: human directions are turned half a turn"
-            " about the forward axis (retarget_frame_rpy_rad), so a hanging human arm maps to it standing up"
+            "a single arm stands on its base, like the shipped desk arms: human directions are turned half a turn "
+            "about the forward axis (retarget_frame_rpy_rad), so a person's hanging arm maps to the arm standing up"
         )
     ET.SubElement(mj, "option", timestep="0.002", integrator="implicitfast")
-    qpos = np.array(m.qpos0, dtype=float)
-    for jn, q in rest.items():
-        qpos[m.joint(jn).qposadr[0]] = q
-    key = ET.SubElement(ET.SubElement(mj, "keyframe"), "key", name="home")
-    key.set("qpos", " ".join(f"{q:.6g}" for q in qpos))
-    key.set("ctrl", " ".join(f"{rest[j]:.6g}" for j in joints))
     comp = mj.find("compiler")
     if comp is not None and comp.get("meshdir"):
-        comp.set("meshdir", "assets")  # meshes travel with the model, relative to it
-    model_dir.mkdir(parents=True, exist_ok=True)
-    ET.indent(mj)
-    mjcf_path.write_text(_header(urdf, guesses) + ET.tostring(mj, encoding="unicode") + "\n")
-    scene_path.write_text(_scene(m, d, name, mjcf_path.name))
+        comp.set("meshdir", str(assets))
     try:
-        mujoco.MjModel.from_xml_path(str(scene_path))
+        m = mujoco.MjModel.from_xml_string(ET.tostring(mj, encoding="unicode"))
     except ValueError as e:
         raise InputError(
-            f"{urdf}: the written model does not load ({' '.join(str(e).split())}); please report"
+            f"{urdf}: the converted model does not load ({' '.join(str(e).split())}); please report"
         ) from None
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    key = ET.SubElement(ET.SubElement(mj, "keyframe"), "key", name="home")
+    model_dir.mkdir(parents=True, exist_ok=True)
     out_yaml.parent.mkdir(parents=True, exist_ok=True)
-    out_yaml.write_text(
-        _yaml(
-            name,
-            urdf,
-            m,
-            joints,
-            rest,
-            velocity,
-            arms,
-            vectors,
-            flip,
-            fixed,
-            guesses,
-            Path(_relpath(scene_path, out_yaml.parent)),
+    model_rel = Path(_relpath(scene_path, out_yaml.parent))
+
+    def write(rest: dict[str, float]) -> None:
+        qpos = np.array(m.qpos0, dtype=float)
+        for jn, q in rest.items():
+            qpos[m.joint(jn).qposadr[0]] = q
+        d.qpos[:] = qpos
+        mujoco.mj_forward(m, d)
+        scene_path.write_text(_scene(m, d, name, mjcf_path.name))  # framed on the robot at rest
+        key.set("qpos", " ".join(f"{q:.6g}" for q in qpos))
+        key.set("ctrl", " ".join(f"{rest[j]:.6g}" for j in joints))
+        if comp is not None and comp.get("meshdir"):
+            comp.set("meshdir", "assets")  # meshes travel with the model, relative to it
+        ET.indent(mj)
+        mjcf_path.write_text(_header(urdf, guesses) + ET.tostring(mj, encoding="unicode") + "\n")
+        out_yaml.write_text(
+            _yaml(name, urdf, m, joints, rest, velocity, arms, vectors, flip, fixed, guesses, model_rel)
         )
-    )
+
+    write(_start_pose(m, joints))
+    write(_settle_rest(out_yaml, guesses))
     return UrdfImport(out_yaml, mjcf_path, scene_path, guesses)
 
 
@@ -273,21 +270,62 @@ def _actuate(mj: ET.Element, m, joints: list[str], velocity: dict[str, float], g
         guesses.append(f"joints {defaulted} have no <limit effort>: sized as an STS3215 ({DEFAULT_EFFORT_NM} N*m)")
 
 
-def _rest_pose(m, joints: list[str], guesses: list[str]) -> dict[str, float]:
-    """Joint zero where it lies well inside the range, else the range's middle."""
-    rest, moved = {}, []
+def _start_pose(m, joints: list[str]) -> dict[str, float]:
+    """Joint zero where it lies well inside the range, else the range's middle: where the rest search starts."""
+    rest = {}
     for jn in joints:
         lo, hi = m.jnt_range[m.joint(jn).id]
         margin = min(0.1, 0.25 * (hi - lo))
         rest[jn] = 0.0 if lo + margin <= 0.0 <= hi - margin else round(0.5 * (lo + hi), 4)
-        if rest[jn] != 0.0:
-            moved.append(jn)
-    guesses.append(
-        "rest pose = joint zero"
-        + (f", except {moved} (zero is at or outside their range: their middle)" if moved else "")
-        + "; set rest_rad and the MJCF's home key together"
-    )
     return rest
+
+
+def _settle_rest(yaml_path: Path, guesses: list[str]) -> dict[str, float]:
+    """The rest pose: the robot's retargeted image of a person standing with arms hanging (collision-free, inside
+    the limits by a margin), so the robot rests where the gestures start and end."""
+    from robogest.generators.poses import REST, dofs_to_rotations
+    from robogest.motion.human_motion import HumanMotion
+    from robogest.retarget import DirectionIK
+    from robogest.robot.config import load_robot_config
+
+    robot = load_robot_config(yaml_path)
+    frames = np.tile(REST, (40, 1))
+    motion = HumanMotion(20.0, dofs_to_rotations(frames), np.tile([0.0, 1.0, 0.0], (len(frames), 1)))
+    # a firm pull to the start pose keeps the joints the vectors hardly need (a wrist roll, a gripper) where they are
+    q = DirectionIK(robot, iterations=30, rest_weight=0.02).retarget(motion, q0=robot.rest_q_rad).q_rad[-1]
+    margin = np.minimum(0.05, 0.25 * (robot.q_max_rad - robot.q_min_rad))
+    q = np.clip(np.round(q, 3), robot.q_min_rad + margin, robot.q_max_rad - margin)
+    guesses.append(
+        "rest pose = the arm's image of a person standing at rest ("
+        + ", ".join(f"{n} {v:+.2f}" for n, v in zip(robot.joint_names, q, strict=True))
+        + " rad); set rest_rad and the MJCF's home key together"
+    )
+    return dict(zip(robot.joint_names, (float(v) for v in q), strict=True))
+
+
+def _face_forward(mj: ET.Element, m, d, arm: _Arm, guesses: list[str]) -> None:
+    """robogest robots face +X: turn the whole robot about Z when its arm reaches sideways at joint zero."""
+
+    def world(role: str) -> np.ndarray:
+        body, pos = arm.points[role]
+        b = m.body(body).id
+        return d.xpos[b] + d.xmat[b].reshape(3, 3) @ pos
+
+    v = world("hand") - world("shoulder")
+    if np.linalg.norm(v[:2]) < 0.5 * np.linalg.norm(v):
+        return  # the arm stands up at zero: nothing says where its front is
+    yaw = math.atan2(v[1], v[0])
+    if abs(yaw) < 0.05:
+        return
+    c, s = math.cos(-yaw / 2), math.sin(-yaw / 2)
+    rz = np.array([[math.cos(-yaw), -math.sin(-yaw), 0], [math.sin(-yaw), math.cos(-yaw), 0], [0, 0, 1]])
+    for body in mj.find("worldbody").findall("body"):
+        pos = np.array([float(x) for x in body.get("pos", "0 0 0").split()])
+        w, x, y, z = (float(t) for t in body.get("quat", "1 0 0 0").split())
+        quat = [c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w]  # (about Z by -yaw) * quat
+        body.set("pos", " ".join(f"{t:.6g}" for t in rz @ pos))
+        body.set("quat", " ".join(f"{t:.6g}" for t in quat))
+    guesses.append(f"the arm reaches {math.degrees(yaw):+.0f} deg from +X at joint zero: turned to face +X")
 
 
 def _chain(m, body: int, joints: set[int]) -> list[int]:
@@ -356,7 +394,9 @@ def _roles(
     """shoulder / elbow / wrist among the chain's points (by joint name if it says, else by order), hand at the tip."""
     names = [m.joint(j).name.lower() for j, _ in pts]
     roles: dict[str, tuple[int, np.ndarray]] = {}
-    by_name = {r: next((i for i, n in enumerate(names) if r in n), None) for r in ("shoulder", "elbow", "wrist")}
+    # the last joint called shoulder* (a shoulder_pan turns the base below the shoulder_lift), the first elbow*/wrist*
+    by_name = {r: next((i for i, n in enumerate(names) if r in n), None) for r in ("elbow", "wrist")}
+    by_name["shoulder"] = next((i for i in reversed(range(len(names))) if "shoulder" in names[i]), None)
     if by_name["shoulder"] is not None and by_name["elbow"] is not None:
         for r, i in by_name.items():
             if i is not None:
@@ -405,19 +445,6 @@ def _add_sites(mj: ET.Element, arms: list[_Arm]) -> list[tuple[str, str, str, st
                 )
             )
     return vectors
-
-
-def _upper_arm_points_up(m, d, arms: list[_Arm]) -> bool:
-    """Whether the (last) arm's shoulder->elbow link points upwards in pose ``d``."""
-
-    def world(role: str) -> np.ndarray:
-        body, pos = arm.points[role]
-        b = m.body(body).id
-        return d.xpos[b] + d.xmat[b].reshape(3, 3) @ pos
-
-    arm = arms[-1]
-    v = world("elbow" if "elbow" in arm.points else "hand") - world("shoulder")
-    return bool(v[2] > 0.5 * np.linalg.norm(v))
 
 
 # --- output files -----------------------------------------------------------------------------------------------

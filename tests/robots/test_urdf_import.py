@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import struct
 
 import mujoco
@@ -197,3 +198,22 @@ def test_bad_urdf_is_one_clear_error(tmp_path, text, pattern):
     (tmp_path / "x.urdf").write_text(text)
     with pytest.raises(InputError, match=pattern):
         import_urdf(tmp_path / "x.urdf", tmp_path / "x.yaml")
+
+
+def test_arm_reaching_sideways_is_turned_to_face_forward(tmp_path):
+    """An arm lying along +Y at joint zero (its base frame turned 90 deg about Z, the upper arm pitched 90 deg) is
+    turned to reach along +X."""
+    urdf = arm_urdf()
+    for joint, rpy in (("joint1", "0 0 1.5708"), ("joint2", "0 1.5708 0")):
+        urdf = re.sub(rf'(<joint name="{joint}".*?<origin xyz="[^"]*")', rf'\1 rpy="{rpy}"', urdf, count=1)
+    assert urdf.count("rpy=") == 2
+    (tmp_path / "side.urdf").write_text(urdf)
+    res = import_urdf(tmp_path / "side.urdf", tmp_path / "side.yaml")
+    assert any("turned to face +X" in g for g in res.guesses)
+    robot = load_robot_config(res.yaml_path)
+    m = mujoco.MjModel.from_xml_path(str(robot.model_path))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    hand = d.site_xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "hand_site")]
+    assert hand[0] > 0.25 and abs(hand[1]) < 1e-6
+    assert [str(p) for p in validate(res.yaml_path)] == []
