@@ -8,8 +8,9 @@ retargeting vectors, no rest keyframe, and no light or floor (a render comes out
   clipped at ``effort`` (the stall torque), ``kp = effort / 0.1 rad``, back-EMF damping ``effort / velocity`` (so
   the no-load speed is the URDF's velocity), armature and friction scaled from the STS3215's;
 - sites at the shoulder, elbow and wrist joint axes and at the tip of the chain, and a retargeting proposal that maps
-  them to the human arm (the right arm for a single arm, both arms when link names say left/right);
-- a ``home`` keyframe at the rest pose (joint zero when it lies well inside the range);
+  them to the human arm (the right arm for a single arm, turned half a turn like the shipped desk arms; both arms
+  when link names say left/right); a single arm that reaches sideways at joint zero is turned to face +X;
+- a ``home`` keyframe at the rest pose: the robot's retargeted image of a person standing at rest;
 - a scene file with a floor, a light, a skybox and the ``front`` camera every robogest scene has.
 
 Everything it guesses is returned as text, written as comments into the YAML, and can be edited there; run
@@ -97,8 +98,8 @@ def import_urdf(urdf: str | Path, out_yaml: str | Path, name: str | None = None,
         for src, dst in meshes.items():
             shutil.copyfile(src, assets / dst)
     try:  # MuJoCo's URDF reader gives the bodies, joints, limits and geoms; the rest is added to its MJCF
+        root.find("mujoco/compiler").set("meshdir", str(assets))
         spec = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
-        spec.compiler.meshdir = str(assets)
         spec.compile()
         mj = ET.fromstring(spec.to_xml())
         m = mujoco.MjModel.from_xml_string(ET.tostring(mj, encoding="unicode"))
