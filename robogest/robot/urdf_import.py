@@ -116,6 +116,7 @@ def import_urdf(urdf: str | Path, out_yaml: str | Path, name: str | None = None,
     velocity = {jn: _urdf_velocity(root, jn) for jn in joints}
     _actuate(mj, m, joints, velocity, guesses)
     vectors = _add_sites(mj, arms)
+    _exclude_touching(mj, m, _start_pose(m, joints), guesses)
     if len(arms) == 1:
         _face_forward(mj, m, d, arms[0], guesses)
     flip = len(arms) == 1
@@ -279,6 +280,31 @@ def _start_pose(m, joints: list[str]) -> dict[str, float]:
         margin = min(0.1, 0.25 * (hi - lo))
         rest[jn] = 0.0 if lo + margin <= 0.0 <= hi - margin else round(0.5 * (lo + hi), 4)
     return rest
+
+
+def _exclude_touching(mj: ET.Element, m, pose: dict[str, float], guesses: list[str]) -> None:
+    """Parts that already overlap in the start pose (meshes meeting at a servo horn, two links away) are a modelling
+    artefact, not a collision to avoid: exclude those body pairs from contact."""
+    import mujoco
+
+    d = mujoco.MjData(m)
+    for jn, q in pose.items():
+        d.qpos[m.joint(jn).qposadr[0]] = q
+    mujoco.mj_forward(m, d)
+    robot = m.body_rootid[m.geom_bodyid] != 0
+    pairs = sorted(
+        {
+            tuple(sorted((m.body(m.geom_bodyid[c.geom1]).name, m.body(m.geom_bodyid[c.geom2]).name)))
+            for c in d.contact[: d.ncon]
+            if robot[c.geom1] and robot[c.geom2] and c.dist < 0
+        }
+    )
+    if not pairs:
+        return
+    contact = ET.SubElement(mj, "contact")
+    for a, b in pairs:
+        ET.SubElement(contact, "exclude", body1=a, body2=b)
+    guesses.append(f"body pairs {pairs} overlap at joint zero: their contacts are excluded (<contact><exclude>)")
 
 
 def _settle_rest(yaml_path: Path, guesses: list[str]) -> dict[str, float]:

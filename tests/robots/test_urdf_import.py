@@ -217,3 +217,15 @@ def test_arm_reaching_sideways_is_turned_to_face_forward(tmp_path):
     hand = d.site_xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "hand_site")]
     assert hand[0] > 0.25 and abs(hand[1]) < 1e-6
     assert [str(p) for p in validate(res.yaml_path)] == []
+
+
+def test_parts_overlapping_at_zero_are_excluded_from_contact(tmp_path):
+    """A hand geom long enough to reach back into the forearm (two links up) overlaps at joint zero: excluded."""
+    urdf = arm_urdf('<box size="0.03 0.03 0.2"/>')
+    urdf = urdf.replace('<origin xyz="0 0 0.03"/><geometry><box size="0.03 0.03 0.2"/>',
+                        '<origin xyz="0 0 -0.02"/><geometry><box size="0.03 0.03 0.2"/>')  # fmt: skip
+    assert 'xyz="0 0 -0.02"' in urdf
+    (tmp_path / "x.urdf").write_text(urdf)
+    res = import_urdf(tmp_path / "x.urdf", tmp_path / "x.yaml")
+    assert any("excluded" in g for g in res.guesses) and "<exclude" in res.mjcf_path.read_text()
+    assert not [str(p) for p in validate(res.yaml_path) if "touches itself" in str(p)]
