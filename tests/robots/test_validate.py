@@ -110,3 +110,12 @@ def test_cli_valid_and_invalid(tmp_path, capsys):
     assert "bus.servos.elbow.model: unknown Feetech model 'STS3216'" in cap.out
     err = cap.err.strip().splitlines()
     assert len(err) == 1 and "1 problem(s)" in err[0]
+
+
+def test_every_problem_is_listed_not_just_the_first(tmp_path):
+    def two_mistakes(raw):
+        raw["joints"][4]["max_velocity_rad_s"] = 4.0
+        raw["joints"][3]["rest_rad"] = -0.4
+
+    problems = _problems(_desk_arm_copy(tmp_path, mutate_yaml=two_mistakes))
+    assert any("max_velocity_rad_s" in p for p in problems) and any('<key name="home">' in p for p in problems)
