@@ -61,7 +61,7 @@ def _rename_joint(raw, new="elbw", rename_servo=True):
         (_rename_joint, [r"key joints\[2\]\.name: 'elbw' is not a joint in .*did you mean 'elbow'\?"]),
         (lambda r: _rename_joint(r, rename_servo=False),
          [r"key joints\[2\]\.name: 'elbw' is not a joint in .*did you mean 'elbow'\?",
-          r"key \(top level\): bus\.servos has no entry for joints \['elbw'\]"]),
+          r"key \(top level\): bus\.servos has no entry for joints \['elbw'\] but names \['elbow'\].*a typo"]),
         (lambda r: r["joints"][4].update(max_velocity_rad_s=4.0),
          [r"key joints\[4\]\.max_velocity_rad_s: 4\.0 rad/s is more than 75% of the STS3215's no-load speed"
           r".*fix: set it to 3\.54 or less"]),
