@@ -56,6 +56,8 @@ def validate(name_or_path: str | Path) -> list[Problem]:
     try:
         robot = find_robot(str(name_or_path))
     except ConfigError as e:
+        if not Path(str(name_or_path)).is_file():
+            raise  # no such robot: nothing to validate (the message lists the known ones)
         return _load_problems(name_or_path, str(e))
     return validate_robot(robot)
 

@@ -110,6 +110,9 @@ def test_cli_valid_and_invalid(tmp_path, capsys):
     assert "bus.servos.elbow.model: unknown Feetech model 'STS3216'" in cap.out
     err = cap.err.strip().splitlines()
     assert len(err) == 1 and "1 problem(s)" in err[0]
+    assert main(["robots", "validate", "no_such_robot"]) == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown robot 'no_such_robot'; known robots:" in err[0]
 
 
 def test_every_problem_is_listed_not_just_the_first(tmp_path):
