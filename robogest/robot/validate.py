@@ -100,7 +100,8 @@ def validate_robot(robot: RobotConfig, check_reach: bool = True) -> list[Problem
 
 
 def _servo_problems(robot: RobotConfig, yml: Path) -> list[Problem]:
-    """Servo models the backend knows (with the bus's protocol) and velocity limits the servo can keep up with."""
+    """Servo models the backend knows (with the bus's protocol), joint limits inside the servo's tick range, and
+    velocity limits the servo can keep up with."""
     if robot.bus is None:
         return []
     from robogest.backends import get_backend_factory
@@ -124,6 +125,13 @@ def _servo_problems(robot: RobotConfig, yml: Path) -> list[Problem]:
                 )
             )
             continue
+        ends = [model.centre_tick + (s.direction * q * s.gear_ratio + s.zero_offset_rad) * model.ticks_per_rev
+                / (2 * np.pi) for q in (j.lower_rad, j.upper_rad)]  # fmt: skip
+        if min(ends) < -0.5 or max(ends) > model.max_tick + 0.5:
+            out.append(Problem(yml, f"bus.servos.{j.name}.zero_offset_rad", f"joint limits [{j.lower_rad}, "
+                               f"{j.upper_rad}] rad fall on ticks {min(ends):.0f}..{max(ends):.0f}, outside the "
+                               f"{model.name}'s 0..{model.max_tick}", "check zero_offset_rad, gear_ratio and the "
+                               "limits (the servo cannot turn past its last tick)"))  # fmt: skip
         no_load = NO_LOAD_RAD_S.get(model.name)
         if no_load is not None and j.max_velocity_rad_s > SPEED_MARGIN * no_load / s.gear_ratio + _TOL:
             cap = SPEED_MARGIN * no_load / s.gear_ratio

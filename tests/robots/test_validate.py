@@ -65,6 +65,9 @@ def _rename_joint(raw, new="elbw", rename_servo=True):
         (lambda r: r["joints"][4].update(max_velocity_rad_s=4.0),
          [r"key joints\[4\]\.max_velocity_rad_s: 4\.0 rad/s is more than 75% of the STS3215's no-load speed"
           r".*fix: set it to 3\.54 or less"]),
+        (lambda r: r["bus"]["servos"]["wrist_roll"].update(zero_offset_rad=1.0),
+         [r"key bus\.servos\.wrist_roll\.zero_offset_rad: joint limits \[-2\.8, 2\.8\] rad fall on ticks 875\.\.4525, "
+          r"outside the STS3215's 0\.\.4095"]),
         (lambda r: r["joints"][3].update(rest_rad=-0.4),
          [r'key <key name="home"> joint "wrist_pitch": qpos -0\.5 / ctrl -0\.5 differ from the YAML rest_rad -0\.4']),
         (lambda r: r["retarget"][1].update(robot=["elbow_site", "wrist_sit"]),
@@ -73,7 +76,7 @@ def _rename_joint(raw, new="elbw", rename_servo=True):
          [r"key retarget\[0\]: the robot link elbow_site->shoulder_site points \d+ deg away from the human bone"]),
     ],
     ids=["limit-wider-than-model", "servo-model-typo", "joint-name-typo", "joint-typo-breaks-bus", "too-fast-for-servo",
-         "keyframe-not-rest", "site-typo", "swapped-sites-unreachable"],
+         "past-servo-ticks", "keyframe-not-rest", "site-typo", "swapped-sites-unreachable"],
 )  # fmt: skip
 def test_yaml_mistakes_found(tmp_path, mutate, patterns):
     problems = _problems(_desk_arm_copy(tmp_path, mutate_yaml=mutate))
