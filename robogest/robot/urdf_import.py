@@ -160,7 +160,7 @@ def import_urdf(urdf: str | Path, out_yaml: str | Path, name: str | None = None,
         )
 
     write(_start_pose(m, joints))
-    write(_settle_rest(out_yaml, guesses))
+    write(_settle_rest(out_yaml, guesses, single_arm=len(arms) == 1))
     return UrdfImport(out_yaml, mjcf_path, scene_path, guesses)
 
 
@@ -307,16 +307,17 @@ def _exclude_touching(mj: ET.Element, m, pose: dict[str, float], guesses: list[s
     guesses.append(f"body pairs {pairs} overlap at joint zero: their contacts are excluded (<contact><exclude>)")
 
 
-def _settle_rest(yaml_path: Path, guesses: list[str]) -> dict[str, float]:
+def _settle_rest(yaml_path: Path, guesses: list[str], single_arm: bool) -> dict[str, float]:
     """The rest pose: the robot's retargeted image of a person standing with arms hanging (collision-free, inside
-    the limits by a margin), so the robot rests where the gestures start and end."""
-    from robogest.generators.poses import REST, dofs_to_rotations
+    the limits by a margin), so the robot rests where the gestures start and end. A single arm copies an arm hanging
+    straight down (not held a little out to the side, as a humanoid's must be), so its base faces forward."""
+    from robogest.generators.poses import REST, dofs_to_rotations, pose
     from robogest.motion.human_motion import HumanMotion
     from robogest.retarget import DirectionIK
     from robogest.robot.config import load_robot_config
 
     robot = load_robot_config(yaml_path)
-    frames = np.tile(REST, (40, 1))
+    frames = np.tile(pose(both_flex=0.05, both_elbow=0.25) if single_arm else REST, (40, 1))
     motion = HumanMotion(20.0, dofs_to_rotations(frames), np.tile([0.0, 1.0, 0.0], (len(frames), 1)))
     # a firm pull to the start pose keeps the joints the vectors hardly need (a wrist roll, a gripper) where they are
     q = DirectionIK(robot, iterations=30, rest_weight=0.02).retarget(motion, q0=robot.rest_q_rad).q_rad[-1]
