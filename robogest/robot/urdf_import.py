@@ -284,7 +284,8 @@ def _start_pose(m, joints: list[str]) -> dict[str, float]:
 
 def _exclude_touching(mj: ET.Element, m, pose: dict[str, float], guesses: list[str]) -> None:
     """Parts that already overlap in the start pose (meshes meeting at a servo horn, two links away) are a modelling
-    artefact, not a collision to avoid: exclude those body pairs from contact."""
+    artefact, not a collision to avoid: exclude those body pairs from contact, and the fixed base from the links its
+    joints turn."""
     import mujoco
 
     d = mujoco.MjData(m)
@@ -299,12 +300,19 @@ def _exclude_touching(mj: ET.Element, m, pose: dict[str, float], guesses: list[s
             if robot[c.geom1] and robot[c.geom2] and c.dist < 0
         }
     )
-    if not pairs:
-        return
-    contact = ET.SubElement(mj, "contact")
-    for a, b in pairs:
-        ET.SubElement(contact, "exclude", body1=a, body2=b)
-    guesses.append(f"body pairs {pairs} overlap at joint zero: their contacts are excluded (<contact><exclude>)")
+    # MuJoCo skips contacts between a body and its parent, but not when the parent is welded to the world (a URDF's
+    # fixed base link): the base and the link its first joint turns touch at that joint, as every other pair does
+    joined = {
+        (m.body(int(m.body_parentid[b])).name, m.body(b).name)
+        for b in range(1, m.nbody)
+        if m.body_parentid[b] > 0 and m.body_weldid[m.body_parentid[b]] == 0 and m.body_jntnum[b] > 0
+    }
+    if pairs:
+        guesses.append(f"body pairs {pairs} overlap at joint zero: their contacts are excluded (<contact><exclude>)")
+    if pairs or joined:
+        contact = ET.SubElement(mj, "contact")
+        for a, b in sorted(set(pairs) | joined):
+            ET.SubElement(contact, "exclude", body1=a, body2=b)
 
 
 def _settle_rest(yaml_path: Path, guesses: list[str], single_arm: bool) -> dict[str, float]:
@@ -382,7 +390,7 @@ def _find_arms(m, d, joints: list[str], guesses: list[str]) -> list[_Arm]:
         names = [m.joint(j).name for j in chain] + [m.body(leaf).name]
         side = next((s for s, pat in _SIDE_PATTERNS.items() if any(pat.search(n) for n in names)), "")
         tip = _tip(m, d, leaf, pts[-1][1])
-        roles = _roles(m, pts, tip, guesses)
+        roles = _roles(m, d, pts, tip, guesses)
         points = {}
         for role, (jid, pos) in roles.items():
             body = int(m.jnt_bodyid[jid]) if jid >= 0 else leaf
@@ -416,23 +424,36 @@ def _tip(m, d, leaf: int, last: np.ndarray) -> np.ndarray:
     return best
 
 
+#: Words in a joint's name, or in the name of the link it moves, that say which human joint it is.
+_ROLE_WORDS = {
+    "shoulder": ("shoulder", "upper_arm", "upperarm"),
+    "elbow": ("elbow", "forearm", "lower_arm", "lowerarm"),
+    "wrist": ("wrist", "hand"),
+}
+
+
 def _roles(
-    m, pts: list[tuple[int, np.ndarray]], tip: np.ndarray, guesses: list[str]
+    m, d, pts: list[tuple[int, np.ndarray]], tip: np.ndarray, guesses: list[str]
 ) -> dict[str, tuple[int, np.ndarray]]:
-    """shoulder / elbow / wrist among the chain's points (by joint name if it says, else by order), hand at the tip."""
-    names = [m.joint(j).name.lower() for j, _ in pts]
+    """shoulder / elbow / wrist among the chain's points (by joint or link name if they say, else by order), hand at
+    the tip."""
+    names = [f"{m.joint(j).name} {m.body(m.jnt_bodyid[j]).name}".lower() for j, _ in pts]
+
+    def said(role: str, i: int) -> bool:
+        return any(w in names[i] for w in _ROLE_WORDS[role])
+
     roles: dict[str, tuple[int, np.ndarray]] = {}
-    # the last joint called shoulder* (a shoulder_pan turns the base below the shoulder_lift), the first elbow*/wrist*
-    by_name = {r: next((i for i, n in enumerate(names) if r in n), None) for r in ("elbow", "wrist")}
-    by_name["shoulder"] = next((i for i in reversed(range(len(names))) if "shoulder" in names[i]), None)
-    if by_name["shoulder"] is not None and by_name["elbow"] is not None:
-        for r, i in by_name.items():
-            if i is not None:
-                roles[r] = pts[i]
-        how = "from the joint names"
+    # the last point called a shoulder (a shoulder_pan turns the base below the shoulder_lift), the first elbow/wrist
+    by_name = {r: next((i for i in range(len(names)) if said(r, i)), None) for r in ("elbow", "wrist")}
+    by_name["shoulder"] = next((i for i in reversed(range(len(names))) if said("shoulder", i)), None)
+    if by_name["shoulder"] is not None and by_name["elbow"] is not None and by_name["shoulder"] < by_name["elbow"]:
+        if by_name["wrist"] is not None and by_name["wrist"] <= by_name["elbow"]:
+            by_name["wrist"] = None
+        roles = {r: pts[i] for r, i in by_name.items() if i is not None}
+        how = "from the joint and link names"
     else:
         # a base turning about the vertical sits below the shoulder: skip it when more points follow
-        first = 1 if len(pts) >= 3 and abs(m.jnt_axis[pts[0][0]][2]) > 0.9 else 0
+        first = 1 if len(pts) >= 3 and abs(d.xaxis[pts[0][0]][2]) > 0.9 else 0
         rest = pts[first:]
         for r, p in zip(("shoulder", "elbow", "wrist"), rest, strict=False):
             roles[r] = p

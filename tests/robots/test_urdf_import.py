@@ -229,3 +229,22 @@ def test_parts_overlapping_at_zero_are_excluded_from_contact(tmp_path):
     res = import_urdf(tmp_path / "x.urdf", tmp_path / "x.yaml")
     assert any("excluded" in g for g in res.guesses) and "<exclude" in res.mjcf_path.read_text()
     assert not [str(p) for p in validate(res.yaml_path) if "touches itself" in str(p)]
+
+
+def test_roles_from_link_names(tmp_path):
+    """Joints named j1.. but links named upper_arm, forearm, hand: the sites follow the link names, not the order
+    (the chain's order alone would take the base pitch joint j1 for the shoulder)."""
+    links = [
+        '<link name="base"><visual><geometry><box size="0.08 0.08 0.04"/></geometry></visual></link>',
+        _link("tower", 0.06, 0.1), _link("upper_arm", 0.12, 0.1), _link("forearm", 0.1, 0.1), _link("hand", 0.05, 0.05),
+    ]  # fmt: skip
+    joints = [
+        _joint("j1", "base", "tower", 0.02, "0 1 0", lo=-0.5, hi=0.5),
+        _joint("j2", "tower", "upper_arm", 0.06, "0 1 0"),
+        _joint("j3", "upper_arm", "forearm", 0.12, "0 1 0", lo=-0.2, hi=2.5),
+        _joint("j4", "forearm", "hand", 0.1, "0 1 0"),
+    ]
+    (tmp_path / "r.urdf").write_text(f'<robot name="r">{"".join(links)}{"".join(joints)}</robot>')
+    res = import_urdf(tmp_path / "r.urdf", tmp_path / "r.yaml")
+    assert any("shoulder_site at joint 'j2'" in g and "from the joint and link names" in g for g in res.guesses)
+    assert [str(p) for p in validate(res.yaml_path)] == []
