@@ -166,10 +166,12 @@ def test_package_meshes_are_found_and_copied(tmp_path):
 
 
 def test_two_arms_from_left_right_names(tmp_path):
+    """A torso with two hanging 2-joint arms (elbows bending forward) named left_*/right_*: both arms mapped."""
+
     def side(s, y):
         return _joint(f"{s}_shoulder", "torso", f"{s}_upper", 0.3, "0 1 0").replace(
             'xyz="0 0 0.3"', f'xyz="0 {y} 0.3"'
-        ) + _joint(f"{s}_elbow", f"{s}_upper", f"{s}_fore", -0.12, "0 1 0", lo=0, hi=2.4)
+        ) + _joint(f"{s}_elbow", f"{s}_upper", f"{s}_fore", -0.12, "0 -1 0", lo=0, hi=2.4)
 
     links = ['<link name="torso"><visual><geometry><box size="0.1 0.16 0.3"/></geometry></visual></link>']
     for s in ("left", "right"):
@@ -182,6 +184,7 @@ def test_two_arms_from_left_right_names(tmp_path):
     assert (("l_shoulder", "l_elbow"), ("l_shoulder_site", "l_elbow_site")) in pairs
     assert (("r_shoulder", "r_elbow"), ("r_shoulder_site", "r_elbow_site")) in pairs
     assert "retarget_frame_rpy_rad" not in raw, "arms hang at rest: no flip"
+    assert [str(p) for p in validate(res.yaml_path)] == []
 
 
 @pytest.mark.parametrize(
