@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, event, given, settings
+from hypothesis import strategies as st
 
 from robogest.backends import get_backend_factory
 from robogest.cli.main import main
@@ -140,3 +142,30 @@ def test_cli(tmp_path, so101_copy, capsys):
     assert rc == 0
     text = capsys.readouterr().out
     assert "the original is unchanged" in text and "elbow_flex" in text and f"{out}: valid" in text
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_calibrated_limits_stay_inside_the_recorded_range(tmp_path, so101_copy, data):
+    """Safety invariant: whatever the file says, the calibrated robot's joint limits map to ticks inside the range
+    LeRobot recorded (and wrote into the servo's position limits), for either drive mode."""
+    calib = {}
+    for j in so101_copy.joints:
+        rest_tick = 2048 + round(j.rest_rad / TICK)  # where the rest pose falls with a centred range
+        lo = data.draw(st.integers(0, rest_tick - 40), label=f"{j.name} min")
+        hi = data.draw(st.integers(rest_tick + 40, 4095), label=f"{j.name} max")
+        calib[j.name] = {"id": so101_copy.bus.servos[j.name].id, "drive_mode": data.draw(st.sampled_from([0, 1])),
+                         "homing_offset": 0, "range_min": lo, "range_max": hi}  # fmt: skip
+    try:
+        res = import_lerobot_calibration(_write(tmp_path, calib), so101_copy, overwrite=True)
+    except ConfigError as e:  # the recorded range leaves no room around the rest pose: refused, nothing written
+        assert "rest pose" in str(e)
+        event("refused")
+        return
+    event("imported")
+    r = load_robot_config(res.path)
+    backend = get_backend_factory("feetech")(r, port="/dev/null")
+    for q in (r.q_min_rad, r.q_max_rad, r.rest_q_rad):
+        ticks = backend.rad_to_ticks(q)
+        for k, name in enumerate(r.joint_names):
+            assert calib[name]["range_min"] - 1 <= ticks[k] <= calib[name]["range_max"] + 1, name
