@@ -162,8 +162,16 @@ class ServoBackend(Backend):
     #: share these shapes, one being a port of the other). Set by each family.
     sdk: ClassVar[Any] = None
 
-    def _lookup_model(self, name: str, sid: int) -> ServoModel:
+    @classmethod
+    def lookup_model(cls, name: str, protocol: float) -> ServoModel:
+        """Facts of the servo model called ``name`` on a bus of this ``protocol``; ConfigError if unknown there."""
         raise NotImplementedError
+
+    def _lookup_model(self, name: str, sid: int) -> ServoModel:
+        try:
+            return self.lookup_model(name, self.protocol)
+        except ConfigError as e:
+            raise ConfigError(f"servo id {sid}: {e}") from None
 
     def _packet_protocol(self) -> Any:
         """The ``PacketHandler`` argument (protocol version, or byte order)."""

@@ -13,7 +13,7 @@ from robogest.robot.registry import DEFAULT_ROBOT, find_robot, list_robots
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser("robots", help="list robot definitions, show one, or check its servos on a port")
+    p = subparsers.add_parser("robots", help="list, show, validate or import robot definitions; check servos on a port")
     sub = p.add_subparsers(dest="robots_command", metavar="ACTION")
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
@@ -31,6 +31,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     from robogest.cli.servo_cmds import add_check_parser
 
     add_check_parser(sub)
+
+    from robogest.cli.robot_files_cmds import add_parsers
+
+    add_parsers(sub)
 
 
 def cmd_list(args: argparse.Namespace) -> int:

@@ -122,6 +122,11 @@ class RobotConfig(_Strict):
         if self.bus is not None:
             missing = [n for n in names if n not in self.bus.servos]
             extra = [n for n in self.bus.servos if n not in names]
+            if missing and extra:  # most often one name mistyped in joints or in bus.servos
+                raise ValueError(
+                    f"bus.servos has no entry for joints {missing} but names {extra}, which are not joints: a typo in"
+                    " one of the two? `robogest robots validate` checks both against the MuJoCo model"
+                )
             if missing:
                 raise ValueError(f"bus.servos has no entry for joints {missing}; add one per joint")
             if extra:
