@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import signal
 import sys
 import threading
@@ -103,18 +102,15 @@ class _Link:
             import scservo_sdk as sdk
 
             self.ph = sdk.PacketHandler(0 if protocol == "sts" else 1)
+        from robogest.backends.servo_common import open_port_exclusive
+
         self.sdk = sdk
-        self.port = sdk.PortHandler(port)
-        try:
-            ok = self.port.openPort() and self.port.setBaudRate(baud)
-        except Exception as e:
-            raise BackendError(f"cannot open serial port {port}: {e}") from None
-        if not ok:
-            raise InputError(f"baud rate {baud} is not supported by the {protocol} SDK")
+        self.port = open_port_exclusive(sdk, port, baud)
 
     def close(self) -> None:
-        with contextlib.suppress(Exception):
-            self.port.closePort()
+        from robogest.backends.servo_common import close_port
+
+        close_port(self.port)
 
     def registers(self) -> Any:
         from robogest.backends.dynamixel_tables import P1Reg, XReg

@@ -1,0 +1,101 @@
+"""The serial link: late replies are never taken as answers to later requests; the port is exclusive."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+import robogest.backends.dynamixel
+import robogest.backends.feetech  # noqa: F401 - registers "feetech"
+from robogest.backends.base import get_backend_factory
+from robogest.backends.player import play
+from robogest.cli.main import main
+from robogest.errors import BackendError
+from robogest.virtualbus import VirtualBus
+from robogest.virtualbus.testing import make_robot
+from tests.backends.conftest import sine_traj
+
+CHAINS = [("dynamixel", 2.0), ("feetech", 0.0)]  # P1 has no sync read: one reply in flight, never late
+
+
+@pytest.mark.parametrize(("family", "protocol"), CHAINS)
+def test_late_replies_of_5_to_20_ms_cause_no_false_stop(tmp_path, family, protocol):
+    """Replies delayed past their deadline used to be read as the answer to the next request
+    ("temperature 195 °C", "supply voltage 591.8 V"); now they are skipped by id and length."""
+    robot = make_robot(tmp_path, family=family, protocol=protocol, n_joints=5)
+    with VirtualBus(robot, "delay=0.005:0.02/0.3,seed=2") as bus:
+        backend = get_backend_factory(family)(robot, port=bus.port, health_hz=25)
+        report = play(sine_traj(robot, seconds=2.0), backend, time_scale=2.0)
+        delayed_past_deadline = backend.retry_count + backend.missed_reads
+    assert report.completed, report.errors
+    assert not any("temperature" in e or "voltage" in e for e in report.errors)
+    assert delayed_past_deadline > 0  # the fault really made replies late
+    assert backend.stale_replies > 0  # ... and late replies really arrived during later requests
+
+
+def test_late_reply_of_the_same_length_is_drained_not_used(tmp_path):
+    """A late Present Voltage reply (1 byte) must not answer a Present Temperature read (1 byte)."""
+    robot = make_robot(tmp_path, family="feetech", protocol=0.0, n_joints=2)
+    with VirtualBus(robot) as bus:
+        backend = get_backend_factory("feetech")(robot, port=bus.port)
+        backend.connect()
+        try:
+            volt, temp = backend.REG["voltage"], backend.REG["temperature"]
+            bus.faults.delay_min_s = bus.faults.delay_max_s = 0.06  # later than the read's deadline
+            bus.faults.delay_p = 1.0
+            assert not backend._read_raw(1, volt)[1]  # timed out; its reply is on its way
+            bus.faults.delay_p = 0.0
+            value, ok, _, _ = backend._read_raw(1, temp)
+            assert ok and value == bus.servo(1).get("temperature") != bus.servo(1).get("voltage")
+            assert backend.stale_bytes > 0  # the late voltage reply was drained
+        finally:
+            backend.shutdown()
+
+
+def test_delayed_feetech_connect_has_no_traceback(tmp_path):
+    robot = make_robot(tmp_path, family="feetech", protocol=0.0, n_joints=4)
+    with VirtualBus(robot, "delay=0.005:0.02,seed=1") as bus:
+        backend = get_backend_factory("feetech")(robot, port=bus.port)
+        backend.connect()  # pings (Model Number reads) all answered late, none misread
+        try:
+            assert np.all(np.abs(backend.read_positions() - robot.rest_q_rad) < 0.05)
+        finally:
+            backend.shutdown()
+
+
+@pytest.mark.parametrize(("family", "protocol"), CHAINS)
+def test_second_client_gets_one_line_and_never_disturbs_the_first(tmp_path, family, protocol):
+    robot = make_robot(tmp_path, family=family, protocol=protocol, n_joints=3)
+    with VirtualBus(robot) as bus:
+        first = get_backend_factory(family)(robot, port=bus.port)
+        first.connect()
+        try:
+            first.set_torque(True)
+            second = get_backend_factory(family)(robot, port=bus.port)
+            with pytest.raises(BackendError, match=rf"^serial port {bus.port} is in use by another program"):
+                second.connect()
+            second.shutdown()  # must not reach the servos: torque stays on for the first client
+            time.sleep(0.05)
+            assert all(s.torque_on for s in bus.servos)
+            assert np.all(np.isfinite(first.read_positions()))
+        finally:
+            first.shutdown()
+        assert not any(s.torque_on for s in bus.servos)
+        again = get_backend_factory(family)(robot, port=bus.port)  # released on close
+        again.connect()
+        again.shutdown()
+
+
+def test_cli_on_a_busy_port_is_one_line(tmp_path, capsys):
+    robot = make_robot(tmp_path, n_joints=2)
+    with VirtualBus(robot) as bus:
+        first = get_backend_factory("dynamixel")(robot, port=bus.port)
+        first.connect()
+        try:
+            assert main(["servo", "ping", "--port", bus.port, "--id", "1"]) == 5
+        finally:
+            first.shutdown()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and bus.port in err[0] and "in use" in err[0]
