@@ -74,9 +74,10 @@ class ServoBackend(Backend):
         Rate of the ramp to rest in :meth:`shutdown`.
     late_reply_window_s : float
         How long a reply that missed its deadline may still arrive. Every reply is matched to its
-        request by servo id and length; within this window a request whose answer could not be told
-        apart from such a late reply (same servo, same length, other register) first drains the input
-        until the line is quiet for ``late_reply_quiet_s`` (25 ms, above a USB adapter's 16 ms latency timer).
+        request by servo id and length; within this window a read whose answer could not be told apart
+        from such a late reply (same servo, same length, other register) also reads the byte below, so
+        its answer's length is unique; a write drains the input until the line is quiet for
+        ``late_reply_quiet_s`` (25 ms, above a USB adapter's 16 ms latency timer).
     """
 
     family: ClassVar[str] = ""
@@ -230,23 +231,33 @@ class ServoBackend(Backend):
             close_port(port)
 
     # --- raw transactions: every reply is matched to its request ---------------------------------
-    def _begin(self, expect: list[int], n_params: int, addr: int) -> None:
-        """Clear the input before a request expecting ``n_params`` bytes from servos ``expect``.
+    def _begin(self, expect: list[int], n_params: int, addr: int, *, widen: bool = False) -> int:
+        """Clear the input before a request expecting ``n_params`` bytes from servos ``expect``; returns
+        how many bytes below ``addr`` a read must also ask for.
 
-        A reply that missed its own transaction's deadline may still be on its way. Bytes already
-        here are dropped; if a reply still in flight from one of these servos has the same length as
-        the one expected but answers another address (it could not be told apart from the right
-        answer), the input is drained until the line has been quiet for ``late_reply_quiet_s``.
+        A reply that missed its own transaction's deadline may still be on its way; bytes already here
+        are dropped, and replies arriving later are told apart by servo id and length. When a reply
+        still in flight from one of these servos has the expected length but answers another address,
+        a read (``widen``) also asks for the byte(s) below ``addr`` so that its answer has a length no
+        late reply has; a write instead drains the input until the line has been quiet for
+        ``late_reply_quiet_s``.
         """
         now = time.monotonic()
         for key in [k for k, (_, until) in self._late.items() if until < now]:
             del self._late[key]
-        clash = any((sid, n_params) in self._late and self._late[(sid, n_params)][0] != addr for sid in expect)
-        if clash:
+
+        def clash(k: int) -> bool:
+            return any(self._late.get((sid, n_params + k), (addr - k,))[0] != addr - k for sid in expect)
+
+        k = 0
+        while clash(k) and widen and k < addr:
+            k += 1
+        self._port.ser.reset_input_buffer()
+        if clash(k):
             self._drain_quiet()
             self._late.clear()
-        else:
-            self._port.ser.reset_input_buffer()
+            return 0
+        return k
 
     def _drain_quiet(self) -> None:
         ser = self._port.ser
@@ -296,12 +307,13 @@ class ServoBackend(Backend):
     def _read_block_raw(self, sid: int, addr: int, size: int) -> tuple[list[int], bool, int, str]:
         """``size`` bytes from ``addr`` of one servo, as sent (bus byte order)."""
         self._prep()
-        self._begin([sid], size, addr)
-        comm = self._ph.readTx(self._port, sid, addr, size)
+        k = self._begin([sid], size, addr, widen=True)
+        comm = self._ph.readTx(self._port, sid, addr - k, size + k)
         if comm != self.sdk.COMM_SUCCESS:
             self._port.is_using = False
             return [], False, 0, self._ph.getTxRxResult(comm)
-        return self._await_status(sid, size, addr)
+        data, ok, err, text = self._await_status(sid, size + k, addr - k)
+        return data[k:], ok, err, text
 
     def _write_block_raw(self, sid: int, addr: int, data: list[int]) -> tuple[list[int], bool, int, str]:
         self._prep()
@@ -349,7 +361,8 @@ class ServoBackend(Backend):
             return {i: self._read_raw(i, reg) for i in ids}
         self._prep()
         addr, size = reg.value
-        self._begin(ids, size, addr)
+        k = self._begin(ids, size, addr, widen=True)
+        addr, size = addr - k, size + k
         group = self.sdk.GroupSyncRead(self._port, self._ph, addr, size)
         for sid in ids:
             group.addParam(sid)
@@ -369,7 +382,7 @@ class ServoBackend(Backend):
                 out[sid] = (0, False, 0, "no valid status packet (missing or corrupt)")
                 continue
             _, err, params = self._split_status(pkt)
-            out[sid] = (self._decode(reg, self._from_bus_bytes(params)), True, err, "ok")
+            out[sid] = (self._decode(reg, self._from_bus_bytes(params[k:])), True, err, "ok")
         return out
 
     def _hardware_error(self, sid: int, err: int) -> str | None:

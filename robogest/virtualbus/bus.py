@@ -8,6 +8,7 @@ status packets and samples a ~100 Hz recording of goals, positions and torque.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import math
 import os
@@ -146,6 +147,8 @@ class VirtualBus:
             key=lambda f: f[0],
         )
         self.disconnected = False
+        self._outq: collections.deque[tuple[float, bytes]] = collections.deque()  # (due, status packet)
+        self._line_free_at = 0.0
 
     # --- lifecycle -------------------------------------------------------------------------------
     def start(self) -> VirtualBus:
@@ -216,7 +219,9 @@ class VirtualBus:
                 next_sample += self.record_period_s
                 if next_sample < now:
                     next_sample = now + self.record_period_s
-            wait = max(0.0, min(next_sample - time.monotonic(), 0.01))
+            self._flush_out()
+            due = self._outq[0][0] if self._outq else next_sample
+            wait = max(0.0, min(next_sample - time.monotonic(), due - time.monotonic(), 0.01))
             try:
                 ready, _, _ = select.select([self._master], [], [], wait)
                 data = os.read(self._master, 65536) if ready else b""
@@ -237,6 +242,7 @@ class VirtualBus:
                 for pkt in packets:
                     self.stats["packets_in"] += 1
                     self._serve(pkt)
+            self._flush_out()
 
     def _apply_timed_faults(self, t: float) -> None:
         while self._pending_faults and self._pending_faults[0][0] <= t:
@@ -290,7 +296,16 @@ class VirtualBus:
                 return s
         return None
 
-    def _emit(self, servo_id: int, pkt: bytes, inst: int) -> None:
+    def _flush_out(self) -> None:
+        """Send the status packets whose time has come."""
+        now = time.monotonic()
+        while self._outq and self._outq[0][0] <= now:
+            self._write(self._outq.popleft()[1])
+
+    def _emit(self, servo_id: int, pkt: bytes, inst: int, delay_s: float = 0.0) -> None:
+        """Queue a status packet: it starts ``delay_s`` (the servo's return delay, plus an injected delay)
+        after the line is free, so replies of one sync/bulk read follow each other as on a real chain and an
+        injected delay holds back every reply queued behind it (a stalled bus)."""
         f = self.faults
         if f.noreply and self._rng.random() < f.noreply:
             self._note(f"injected: no reply from id {servo_id} to {_INST_NAMES.get(inst, hex(inst))}")
@@ -299,8 +314,10 @@ class VirtualBus:
             pkt = pkt[:-1] + bytes([pkt[-1] ^ 0x5A])
             self._note(f"injected: bad checksum from id {servo_id} to {_INST_NAMES.get(inst, hex(inst))}")
         if f.delay_p and self._rng.random() < f.delay_p:
-            time.sleep(self._rng.uniform(f.delay_min_s, f.delay_max_s))
-        self._write(pkt)
+            delay_s += self._rng.uniform(f.delay_min_s, f.delay_max_s)
+        due = max(time.monotonic(), self._line_free_at) + delay_s
+        self._line_free_at = due
+        self._outq.append((due, pkt))
 
     def _write(self, data: bytes) -> None:
         if self._master is None:
@@ -332,7 +349,7 @@ class VirtualBus:
         if inst != PING and (level == 0 or (level == 1 and inst not in (READ, SYNC_READ, BULK_READ))):
             return
         err = code | (P2_ALERT if servo.hw_faults else 0)
-        self._emit(servo.id, framing.build2(servo.id, err, params), inst)
+        self._emit(servo.id, framing.build2(servo.id, err, params), inst, servo.return_delay_s)
 
     def _serve2(self, pkt: framing.Packet) -> None:
         sid, inst, p = pkt.servo_id, pkt.inst, pkt.params
@@ -434,7 +451,7 @@ class VirtualBus:
             if k < len(servos) - 1:
                 pkt += crc16_bytes(pkt)
         pkt += crc16_bytes(pkt)
-        self._emit(BROADCAST, bytes(pkt), FAST_SYNC_READ)
+        self._emit(BROADCAST, bytes(pkt), FAST_SYNC_READ, servos[0].return_delay_s if servos else 0.0)
 
     def _write_checked(self, s: SimServo, addr: int, data: bytes) -> int:
         code = s.write(addr, bytes(data))
@@ -451,7 +468,8 @@ class VirtualBus:
                 return
         elif inst != PING and (level == 0 or (level == 1 and inst != READ)):
             return
-        self._emit(servo.id, framing.build1(servo.id, err | servo.hw_error_bits_p1(), params), inst)
+        pkt = framing.build1(servo.id, err | servo.hw_error_bits_p1(), params)
+        self._emit(servo.id, pkt, inst, servo.return_delay_s)
 
     def _serve1(self, pkt: framing.Packet) -> None:
         sid, inst, p = pkt.servo_id, pkt.inst, pkt.params
@@ -475,6 +493,13 @@ class VirtualBus:
                 s = self._present(i)
                 if s is not None:
                     code, data = s.read(addr, length)
+                    self._status1(s, READ, _P1_ERR.get(code, 0), data)
+            return
+        if inst == BULK_READ and self.family == "dynamixel" and len(p) >= 1:
+            for i in range(1, len(p) - 2, 3):  # 0x00, then (length, id, address) per servo
+                s = self._present(p[i + 1])
+                if s is not None:
+                    code, data = s.read(p[i + 2], p[i])
                     self._status1(s, READ, _P1_ERR.get(code, 0), data)
             return
         if sid == BROADCAST and inst == PING:

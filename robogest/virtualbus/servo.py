@@ -47,6 +47,7 @@ class SimServo:
         start = float(spec.centre_tick)
         self.motion = _Motion(cmd=start, pos=start)
         self._store(spec.reg("goal"), spec.centre_tick)
+        self.flash = bytes(self.mem[: spec.eeprom_end])  #: EEPROM as it will be after a power cycle
         self.hw_faults: set[str] = set()  #: injected hardware faults, names from HW_BITS_P2
         self.vanished = False
         self.registered: tuple[int, bytes] | None = None  #: pending REG_WRITE (address, data)
@@ -112,7 +113,7 @@ class SimServo:
                 return ERR_LENGTH
             if not r.writable:
                 return ERR_ACCESS
-            if r.addr < self.spec.eeprom_end and self._eeprom_locked():
+            if self._locked(r.addr):
                 return ERR_ACCESS
             value = self._decode(r, data[a - addr : a - addr + r.size])
             if (r.lo is not None and value < r.lo) or (r.hi is not None and value > r.hi):
@@ -123,10 +124,18 @@ class SimServo:
             a += r.size
         return OK
 
-    def _eeprom_locked(self) -> bool:
+    def _locked(self, addr: int) -> bool:
+        """Whether the write protection of this model refuses a write at ``addr`` now."""
+        if self.spec.family == "feetech":
+            return False  # Lock only decides whether EEPROM writes are saved (see write())
         if self.spec.eeprom_locked_by_torque:
-            return self.torque_on
-        return self.has("lock") and self.get("lock") != 0
+            return addr < self.spec.eeprom_end and self.torque_on
+        return self.has("lock") and self.get("lock") != 0 and not 24 <= addr <= 35  # AX/MX: until power-off
+
+    @property
+    def return_delay_s(self) -> float:
+        """Time between the end of an instruction and the start of this servo's status packet."""
+        return self.get("Return_Delay_Time") * self.spec.return_delay_unit_s
 
     def write(self, addr: int, data: bytes) -> int:
         err = self.check_write(addr, data)
@@ -134,6 +143,9 @@ class SimServo:
             return err
         goal = self.spec.reg("goal")
         self.mem[addr : addr + len(data)] = data
+        eeprom = self.spec.eeprom_end
+        if addr < eeprom and not (self.spec.family == "feetech" and self.get("lock") != 0):
+            self.flash = bytes(self.mem[:eeprom])  # Feetech with Lock = 1: applied now, lost at power-off
         if addr <= goal.addr < addr + len(data):
             lo, hi = self.get("min"), self.get("max")
             if not lo <= self.get("goal") <= hi:  # P1/Feetech: clamp (P1 also flags an angle error)
@@ -171,6 +183,11 @@ class SimServo:
             self._store(self.spec.by_name["Status"], self.hw_error_bits_p1())
         if self._shutdown_active():
             self._store(self.spec.reg("torque"), 0)
+
+    def power_cycle(self) -> None:
+        """Power off and on: EEPROM back from flash, RAM (torque, Lock, goals) at defaults, faults cleared."""
+        self.mem[: self.spec.eeprom_end] = self.flash
+        self.reboot()
 
     def reboot(self) -> None:
         """REBOOT: clears latched faults, torque off, RAM back to defaults (EEPROM kept)."""

@@ -35,7 +35,7 @@ def test_late_replies_of_5_to_20_ms_cause_no_false_stop(tmp_path, family, protoc
     assert backend.stale_replies > 0  # ... and late replies really arrived during later requests
 
 
-def test_late_reply_of_the_same_length_is_drained_not_used(tmp_path):
+def test_late_reply_of_the_same_length_is_never_used(tmp_path, monkeypatch):
     """A late Present Voltage reply (1 byte) must not answer a Present Temperature read (1 byte)."""
     robot = make_robot(tmp_path, family="feetech", protocol=0.0, n_joints=2)
     with VirtualBus(robot) as bus:
@@ -43,13 +43,24 @@ def test_late_reply_of_the_same_length_is_drained_not_used(tmp_path):
         backend.connect()
         try:
             volt, temp = backend.REG["voltage"], backend.REG["temperature"]
-            bus.faults.delay_min_s = bus.faults.delay_max_s = 0.06  # later than the read's deadline
+            bus.faults.delay_min_s = bus.faults.delay_max_s = 60.0  # held back by the bus
             bus.faults.delay_p = 1.0
-            assert not backend._read_raw(1, volt)[1]  # timed out; its reply is on its way
+            assert not backend._read_raw(1, volt)[1]  # timed out; its reply is still queued
             bus.faults.delay_p = 0.0
+            begin = backend._begin
+
+            def begin_then_release_the_late_reply(*args, **kwargs):
+                k = begin(*args, **kwargs)
+                with bus._lock:  # the voltage reply goes out now, ahead of the temperature reply
+                    bus._outq[0] = (time.monotonic(), bus._outq[0][1])
+                    bus._line_free_at = time.monotonic()
+                return k
+
+            monkeypatch.setattr(backend, "_begin", begin_then_release_the_late_reply)
             value, ok, _, _ = backend._read_raw(1, temp)
+            monkeypatch.undo()
             assert ok and value == bus.servo(1).get("temperature") != bus.servo(1).get("voltage")
-            assert backend.stale_bytes > 0  # the late voltage reply was drained
+            assert backend.stale_replies == 1  # the late voltage reply arrived first, and was skipped
         finally:
             backend.shutdown()
 
