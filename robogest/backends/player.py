@@ -206,7 +206,7 @@ def play(
                 if now - due > 0.5 * period:
                     report.late_ticks += 1
                 starts.append(now)
-            q = np.clip(sample(t_traj), lo, hi)
+            q = np.clip(backend.shape_target(sample(t_traj), trajectory.rest_q_rad), lo, hi)
             backend.write_goal(q)
             if read_back:
                 backend.read_positions()

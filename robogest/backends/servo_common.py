@@ -19,6 +19,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from robogest.backends.base import Backend
+from robogest.backends.governor import Governor, GovernorConfig
 from robogest.errors import BackendError, ConfigError, InputError, RobogestError
 from robogest.robot.config import RobotConfig
 
@@ -72,6 +73,11 @@ class ServoBackend(Backend):
         Stop when |load| exceeds this percentage of the maximum (off by default).
     shutdown_rate_hz : float
         Rate of the ramp to rest in :meth:`shutdown`.
+    governor : bool
+        Scale gestures down as the servos heat up or strain (:mod:`robogest.backends.governor`).
+    warn_temperature_c : float, optional
+        Where the governor starts acting; default ``max_temperature_c - 10``. It starts on load at 60 %
+        (or 60 % of ``max_load_pct`` when that is set).
     late_reply_window_s : float
         How long a reply that missed its deadline may still arrive. Every reply is matched to its
         request by servo id and length; within this window a read whose answer could not be told apart
@@ -100,6 +106,8 @@ class ServoBackend(Backend):
         max_load_pct: float | None = None,
         shutdown_rate_hz: float = 50.0,
         late_reply_window_s: float = 0.5,
+        governor: bool = True,
+        warn_temperature_c: float | None = None,
         **_ignored: Any,
     ) -> None:
         super().__init__(robot)
@@ -126,6 +134,16 @@ class ServoBackend(Backend):
         self.max_load_pct = max_load_pct
         self.shutdown_rate_hz = shutdown_rate_hz
         self.late_reply_window_s = late_reply_window_s
+        load_limit = max_load_pct if max_load_pct is not None else 100.0
+        self.governor = Governor(
+            GovernorConfig(
+                warn_temperature_c=max_temperature_c - 10.0 if warn_temperature_c is None else warn_temperature_c,
+                max_temperature_c=max_temperature_c,
+                warn_load_pct=0.6 * load_limit,
+                max_load_pct=load_limit,
+            ),
+            enabled=governor,
+        )
         self.late_reply_quiet_s = 0.025
         self.stale_replies = 0  #: status packets discarded as late answers to earlier requests
         self.stale_bytes = 0  #: bytes drained while waiting for the line to go quiet
@@ -591,6 +609,7 @@ class ServoBackend(Backend):
                 self._budget = self.tick_retry_budget
                 self._volt_limits[int(sid)] = self.voltage_range_v or self._voltage_limits_v(int(sid))
             self.is_connected = True
+            self.governor.reset()
             self._budget = self.tick_retry_budget
             self._positions_known = False
             self._next_health = time.monotonic() + self.health_period_s / max(1, len(self.ids))
@@ -740,8 +759,23 @@ class ServoBackend(Backend):
             "load_pct": value(regs[2]) / 10.0,
         }
 
+    def shape_target(self, q_target_rad: np.ndarray, rest_q_rad: np.ndarray) -> np.ndarray:
+        return self.governor.shape(q_target_rad, rest_q_rad)
+
+    def governor_state(self) -> dict[str, float]:
+        return self.governor.state()
+
     def check_health(self, sid: int) -> dict[str, float]:
+        """Read one servo's health, feed the governor, and stop past the hard limits."""
         h = self.read_health(sid)
+        before = self.governor.target_factor()
+        self.governor.observe(sid, h["temperature_c"], h["load_pct"])
+        after = self.governor.target_factor()
+        if self.governor.enabled and after < 1.0 <= before:
+            self.events.append(
+                f"health governor: {self._who(sid)} at {h['temperature_c']:.0f} °C, load {abs(h['load_pct']):.0f} % "
+                f"(warning from {self.governor.config.warn_temperature_c:.0f} °C); gestures scaled down, rests longer"
+            )
         lo, hi = self._volt_limits.get(sid, (0.0, float("inf")))
         if h["temperature_c"] > self.max_temperature_c:
             why = f"temperature {h['temperature_c']:.0f} °C above the {self.max_temperature_c:.0f} °C limit"

@@ -28,7 +28,7 @@ from robogest.fileio import atomic_path
 from robogest.robot.config import RobotConfig
 from robogest.virtualbus import framing
 from robogest.virtualbus.faults import FaultSpec
-from robogest.virtualbus.servo import ERR_ACCESS, ERR_LENGTH, ERR_RANGE, SimServo
+from robogest.virtualbus.servo import ERR_ACCESS, ERR_LENGTH, ERR_RANGE, SimServo, ThermalModel
 from robogest.virtualbus.tables import ModelSpec, find_model
 
 BROADCAST = 0xFE
@@ -78,6 +78,9 @@ class VirtualBus:
         servos do (speeds a pty cannot report, like 128000, are accepted).
     record_hz : float
         Sampling rate of :meth:`record`.
+    thermal : ThermalModel, optional
+        How the servos heat with load and cool at rest (default: 25 °C above 30 °C ambient at full load,
+        2 min time constant).
     """
 
     def __init__(
@@ -88,6 +91,7 @@ class VirtualBus:
         start_q_rad: np.ndarray | None = None,
         check_baud: bool = True,
         record_hz: float = 100.0,
+        thermal: ThermalModel | None = None,
     ) -> None:
         if robot.bus is None:
             raise ConfigError(f"robot {robot.name!r} has no bus section; add bus: family, protocol, servos")
@@ -109,7 +113,7 @@ class VirtualBus:
                 raise ConfigError(f"robot {robot.name!r}: servo model {sc.model!r} is not emulated") from None
             if spec.family != self.family:
                 raise ConfigError(f"servo model {sc.model} is {spec.family}, but the bus family is {self.family}")
-            servo = SimServo(spec, sc.id, _baud_index(spec, robot.bus.baudrate))
+            servo = SimServo(spec, sc.id, _baud_index(spec, robot.bus.baudrate), thermal)
             tpr = spec.ticks_per_rad()
 
             def to_ticks(q: float, sc: Any = sc, spec: ModelSpec = spec, tpr: float = tpr) -> float:

@@ -24,6 +24,18 @@ HW_BITS_P1 = {"voltage": 0x01, "overheating": 0x04, "encoder": 0x02, "shock": 0x
 _LAG_TAU_S = 0.015  # position-loop time constant
 
 
+@dataclass(frozen=True)
+class ThermalModel:
+    """First-order winding temperature: it settles at ``ambient_c + rise_c_at_full_load * |load|`` (load as
+    a fraction of the maximum, 0 with torque off) with time constant ``tau_s``. ``time_scale`` > 1 runs the
+    thermal clock faster than the wall clock, so a test can heat a servo for minutes in seconds."""
+
+    ambient_c: float = 30.0
+    rise_c_at_full_load: float = 25.0
+    tau_s: float = 120.0
+    time_scale: float = 1.0
+
+
 @dataclass
 class _Motion:
     cmd: float  # profile generator output, ticks
@@ -36,8 +48,11 @@ class _Motion:
 class SimServo:
     """Control table + motor model of one servo. Not thread-safe: the bus thread owns it."""
 
-    def __init__(self, spec: ModelSpec, servo_id: int, baud_value: int | None = None) -> None:
+    def __init__(
+        self, spec: ModelSpec, servo_id: int, baud_value: int | None = None, thermal: ThermalModel | None = None
+    ) -> None:
         self.spec = spec
+        self.thermal = thermal or ThermalModel()
         self.mem = bytearray(spec.table_size)
         for r in spec.regs:
             self._store(r, r.default)
@@ -45,7 +60,7 @@ class SimServo:
         if baud_value is not None:
             self._store(spec.reg("baud"), baud_value)
         start = float(spec.centre_tick)
-        self.motion = _Motion(cmd=start, pos=start)
+        self.motion = _Motion(cmd=start, pos=start, temp_c=self.thermal.ambient_c)
         self._store(spec.reg("goal"), spec.centre_tick)
         self.flash = bytes(self.mem[: spec.eeprom_end])  #: EEPROM as it will be after a power cycle
         self.hw_faults: set[str] = set()  #: injected hardware faults, names from HW_BITS_P2
@@ -230,9 +245,11 @@ class SimServo:
         else:
             m.vel = 0.0
             m.cmd, m.cmd_vel = m.pos, 0.0
+        th = self.thermal
         load = self._load_permille()
-        target_temp = 30.0 + 25.0 * abs(load) / 1000.0 + (60.0 if "overheating" in self.hw_faults else 0.0)
-        m.temp_c += (target_temp - m.temp_c) * (1.0 - math.exp(-dt / 120.0))
+        target_temp = th.ambient_c + th.rise_c_at_full_load * abs(load) / 1000.0
+        target_temp += 60.0 if "overheating" in self.hw_faults else 0.0
+        m.temp_c += (target_temp - m.temp_c) * (1.0 - math.exp(-dt * th.time_scale / th.tau_s))
         self._sync_feedback()
 
     def _load_permille(self) -> float:
