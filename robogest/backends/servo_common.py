@@ -596,10 +596,18 @@ class ServoBackend(Backend):
                     continue
                 if found != model.number:
                     wrong.append(f"{self._who(sid)}: expected model {model.name} ({model.number}), found {found}")
+            scan = f"robogest servo scan --port {self.port_name}"
+            if len(missing) == len(self.ids):
+                raise BackendError(
+                    f"no servo answered on {self.port_name} at {self.baudrate} baud with {self.family} protocol "
+                    f"{self.protocol:g} (expected ids {', '.join(str(int(i)) for i in self.ids)}): wrong baud rate, "
+                    f"protocol or port, or no power? `{scan}` shows what answers"
+                )
             if missing or wrong:
                 raise BackendError(
-                    f"servo check failed on {self.port_name} at {self.baudrate} baud:\n  "
-                    + "\n  ".join(missing + wrong)
+                    f"servo check failed on {self.port_name} at {self.baudrate} baud: "
+                    + "; ".join(missing + wrong)
+                    + f"; `{scan}` shows what answers"
                 )
             lo = self._sync_read(self.REG["min"])
             hi = self._sync_read(self.REG["max"])

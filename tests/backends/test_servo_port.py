@@ -13,6 +13,7 @@ from robogest.backends.base import get_backend_factory
 from robogest.backends.player import play
 from robogest.cli.main import main
 from robogest.errors import BackendError
+from robogest.robot.config import load_robot_config
 from robogest.virtualbus import VirtualBus
 from robogest.virtualbus.testing import make_robot
 from tests.backends.conftest import sine_traj
@@ -110,3 +111,16 @@ def test_cli_on_a_busy_port_is_one_line(tmp_path, capsys):
             first.shutdown()
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and bus.port in err[0] and "in use" in err[0]
+
+
+def test_wrong_protocol_is_one_line_suggesting_scan(tmp_path, capsys):
+    """Protocol 1.0 servos, robot YAML says 2.0: one line, not one per servo, and it names `servo scan`."""
+    make_robot(tmp_path, family="dynamixel", protocol=1.0, n_joints=11, name="p1bot")
+    yaml_p2 = make_robot(tmp_path / "p2", family="dynamixel", protocol=2.0, n_joints=11, name="p1bot")
+    with VirtualBus(load_robot_config(tmp_path / "p1bot.yaml")) as bus:
+        backend = get_backend_factory("dynamixel")(yaml_p2, port=bus.port, retries=0)
+        with pytest.raises(BackendError) as e:
+            backend.connect()
+    msg = str(e.value)
+    assert "\n" not in msg and f"robogest servo scan --port {bus.port}" in msg
+    assert msg.startswith(f"no servo answered on {bus.port} at 1000000 baud with dynamixel protocol 2")
