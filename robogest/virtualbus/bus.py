@@ -55,6 +55,9 @@ _SPEEDS = {
 }  # fmt: skip
 
 
+_TCGETS2 = 0x802C542A  # Linux: ioctl reading struct termios2 (44 bytes), which holds custom speeds
+
+
 def _baud_index(spec: ModelSpec, baudrate: int) -> int | None:
     for value, rate in spec.baud_table.items():
         if abs(rate - baudrate) <= 0.03 * baudrate:
@@ -291,8 +294,18 @@ class VirtualBus:
             speed = termios.tcgetattr(self._slave)[5]
         except termios.error:
             return True
-        rate = _SPEEDS.get(speed)
+        rate = _SPEEDS.get(speed) or self._custom_speed()
         return rate is None or abs(rate - servo.baudrate) <= 0.03 * rate
+
+    def _custom_speed(self) -> int | None:
+        """A rate set with BOTHER (pyserial does so for 250000, 128000, ...), read with Linux's TCGETS2."""
+        try:
+            import fcntl
+
+            buf = fcntl.ioctl(self._slave, _TCGETS2, bytes(44))  # struct termios2: c_ospeed at byte 40
+        except (OSError, ValueError, TypeError):
+            return None
+        return int.from_bytes(buf[40:44], "little") or None
 
     def _present(self, sid: int) -> SimServo | None:
         for s in self.servos:
