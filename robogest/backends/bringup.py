@@ -218,18 +218,23 @@ def scan(
     per_id: bool = False,
     timeout_ms: float = 10.0,
     progress: Callable[[int, int, str], None] | None = None,
-    stop_at_first: bool = False,
+    all_protocols: bool = False,
 ) -> list[FoundServo]:
     """Every servo that answers on ``port``, trying each protocol at each baud rate (common ones first).
 
     One broadcast ping per protocol and baud (Protocol 1.0, whose servos do not answer broadcasts, and
-    ``per_id`` ask ids ``0..max_id`` one by one with ``timeout_ms``). ``progress(done, total, what)`` is
-    called before each try.
+    ``per_id`` ask ids ``0..max_id`` one by one with ``timeout_ms``, raised above the USB adapter's latency
+    timer). Protocols after the first one that answered are skipped unless ``all_protocols``.
+    ``progress(done, total, what)`` is called before each try.
     """
     protocols = protocols or list(PROTOCOLS)
     tries = [(p, b) for p in protocols for b in (bauds or COMMON_BAUDS[p])]
     found: list[FoundServo] = []
+    timer = latency_timer_path(port)  # a USB adapter holds a short reply back this long
+    latency_ms = float(timer.read_text().strip() or 0) if timer is not None else 0.0
     for k, (proto, baud) in enumerate(tries):
+        if found and not all_protocols and proto != found[-1].protocol:
+            break  # every baud of the protocol that answered is done; one bus rarely mixes protocols
         if progress:
             progress(k, len(tries), f"{proto} at {baud} baud")
         try:
@@ -238,14 +243,12 @@ def scan(
             continue  # a rate this SDK cannot set
         with link:
             if per_id or proto == "dxl1":
-                ids = link.ping_each(range(0, max_id + 1), timeout_ms)
+                ids = link.ping_each(range(0, max_id + 1), max(timeout_ms, latency_ms + 4.0))
             else:
                 ids = link.broadcast_ping(max_id)
             for sid in ids:
                 with contextlib.suppress(BackendError):
                     found.append(describe(link, sid))
-        if found and stop_at_first:
-            break
     if progress:
         progress(len(tries), len(tries), "done")
     return found

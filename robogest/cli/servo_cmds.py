@@ -41,6 +41,7 @@ def register(subparsers: Any) -> None:
     scan.add_argument("--baud", type=int, action="append", help="repeatable; default the common ones")
     scan.add_argument("--max-id", type=int, default=252, help="highest id to wait for (default: %(default)s)")
     scan.add_argument("--per-id", action="store_true", help="ask ids one by one (servos that ignore broadcasts)")
+    scan.add_argument("--all", action="store_true", help="try every protocol, not only up to the first that answers")
     scan.add_argument("--json", action="store_true", help="print a JSON list instead of one line per servo")
     scan.set_defaults(func=_scan)
     doc = ss.add_parser(
@@ -143,7 +144,7 @@ def _scan(args: argparse.Namespace) -> int:
     from robogest.backends.bringup import scan
 
     found = scan(
-        args.port, args.protocol, args.baud, max_id=args.max_id, per_id=args.per_id,
+        args.port, args.protocol, args.baud, max_id=args.max_id, per_id=args.per_id, all_protocols=args.all,
         progress=lambda k, n, what: _status(what, k, n),
     )  # fmt: skip
     if args.json:
