@@ -94,24 +94,26 @@ class ServoLink:
         self.port.is_using = False
         self.port.ser.reset_input_buffer()
 
-    def read(self, sid: int, reg: Enum) -> int:
+    def read(self, sid: int, reg: Enum, attempts: int = 3) -> int:
         """One register (unsigned raw value); raises :class:`BackendError` naming the servo and register."""
         addr, size = reg.value
-        self._prep()
-        data, comm, _ = self.ph.readTxRx(self.port, sid, addr, size)
-        if not self.ok(comm) or len(data) != size:
-            raise BackendError(f"servo id {sid}: reading {reg.name}: {self.ph.getTxRxResult(comm)}")
-        return int.from_bytes(bytes(data), "big" if self.protocol == "scs" else "little")
+        for _ in range(attempts):
+            self._prep()
+            data, comm, _ = self.ph.readTxRx(self.port, sid, addr, size)
+            if self.ok(comm) and len(data) == size:
+                return int.from_bytes(bytes(data), "big" if self.protocol == "scs" else "little")
+        raise BackendError(f"servo id {sid}: reading {reg.name}: {self.ph.getTxRxResult(comm)}")
 
-    def write(self, sid: int, reg: Enum, value: int) -> int:
+    def write(self, sid: int, reg: Enum, value: int, attempts: int = 3) -> int:
         """One register; returns the status error byte."""
         addr, size = reg.value
-        self._prep()
         data = list(int(value).to_bytes(size, "big" if self.protocol == "scs" else "little"))
-        comm, err = self.ph.writeTxRx(self.port, sid, addr, size, data)
-        if not self.ok(comm):
-            raise BackendError(f"servo id {sid}: writing {reg.name}: {self.ph.getTxRxResult(comm)}")
-        return int(err)
+        for _ in range(attempts):
+            self._prep()
+            comm, err = self.ph.writeTxRx(self.port, sid, addr, size, data)
+            if self.ok(comm):
+                return int(err)
+        raise BackendError(f"servo id {sid}: writing {reg.name}: {self.ph.getTxRxResult(comm)}")
 
     def write_eeprom(self, sid: int, reg: Enum, value: int) -> None:
         """An EEPROM write that sticks: torque off first; on Feetech, Lock opened for it and restored after."""
