@@ -27,6 +27,10 @@ def register(subparsers: Any) -> None:
     vb.add_argument("--robot", required=True, help="robot name or YAML path (needs a bus section)")
     vb.add_argument("--faults", default=None, help="fault spec, e.g. 'noreply=0.05,hwerror=3:overload@2.0'")
     vb.add_argument("--record", default=None, help="write the bus recording (.npz) here on exit")
+    vb.add_argument(
+        "--return-delay-time", type=int, default=0,
+        help="Return Delay Time of every servo, 2 us units (default: 0; -1: each model's factory value)",
+    )  # fmt: skip
     vb.set_defaults(func=_virtual_bus)
 
     servo = subparsers.add_parser(
@@ -98,7 +102,10 @@ def _virtual_bus(args: argparse.Namespace) -> int:
     from robogest.virtualbus import FaultSpec, VirtualBus
 
     robot = find_robot(args.robot)
-    bus = VirtualBus(robot, FaultSpec.parse(args.faults))
+    rdt = None if args.return_delay_time < 0 else args.return_delay_time
+    if rdt is not None and rdt > 254:
+        raise InputError(f"--return-delay-time {rdt} is out of range; use 0..254, or -1 for the factory value")
+    bus = VirtualBus(robot, FaultSpec.parse(args.faults), return_delay_time=rdt)
     stop = threading.Event()
     old = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     bus.start()

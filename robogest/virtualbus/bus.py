@@ -55,6 +55,7 @@ _SPEEDS = {
 }  # fmt: skip
 
 
+_COALESCE_S = 0.006  # return-delay-only replies this close behind a due one leave with it
 _TCGETS2 = 0x802C542A  # Linux: ioctl reading struct termios2 (44 bytes), which holds custom speeds
 
 
@@ -84,6 +85,9 @@ class VirtualBus:
     thermal : ThermalModel, optional
         How the servos heat with load and cool at rest (default: 25 °C above 30 °C ambient at full load,
         2 min time constant).
+    return_delay_time : int, optional
+        Return Delay Time register of every servo at power-up (units of 2 us): 0 by default, as on a bus
+        set up by ``servo doctor --fix`` or LeRobot; None keeps each model's factory value (250 on X/AX).
     """
 
     def __init__(
@@ -95,6 +99,7 @@ class VirtualBus:
         check_baud: bool = True,
         record_hz: float = 100.0,
         thermal: ThermalModel | None = None,
+        return_delay_time: int | None = 0,
     ) -> None:
         if robot.bus is None:
             raise ConfigError(f"robot {robot.name!r} has no bus section; add bus: family, protocol, servos")
@@ -117,6 +122,9 @@ class VirtualBus:
             if spec.family != self.family:
                 raise ConfigError(f"servo model {sc.model} is {spec.family}, but the bus family is {self.family}")
             servo = SimServo(spec, sc.id, _baud_index(spec, robot.bus.baudrate), thermal)
+            if return_delay_time is not None:
+                servo._store(spec.reg("Return_Delay_Time"), return_delay_time)
+                servo.flash = bytes(servo.mem[: spec.eeprom_end])
             tpr = spec.ticks_per_rad()
 
             def to_ticks(q: float, sc: Any = sc, spec: ModelSpec = spec, tpr: float = tpr) -> float:
@@ -154,7 +162,8 @@ class VirtualBus:
             key=lambda f: f[0],
         )
         self.disconnected = False
-        self._outq: collections.deque[tuple[float, bytes]] = collections.deque()  # (due, status packet)
+        # (due, status packet, held by an injected delay)
+        self._outq: collections.deque[tuple[float, bytes, bool]] = collections.deque()
         self._line_free_at = 0.0
 
     # --- lifecycle -------------------------------------------------------------------------------
@@ -227,7 +236,7 @@ class VirtualBus:
                 if next_sample < now:
                     next_sample = now + self.record_period_s
             self._flush_out()
-            due = self._outq[0][0] if self._outq else next_sample
+            due = self._next_due() or next_sample
             wait = max(0.0, min(next_sample - time.monotonic(), due - time.monotonic(), 0.01))
             try:
                 ready, _, _ = select.select([self._master], [], [], wait)
@@ -313,11 +322,28 @@ class VirtualBus:
                 return s
         return None
 
+    def _run_end(self) -> int:
+        """Length of the run of packets that leave together: the head and the packets queued right behind
+        it only by return delays (the rest of a sync read's replies). Sending them in one write, when the
+        last is due (never early), avoids a wake-up per reply, which would cost a GIL hand-over each (~5 ms
+        when the client spins in the same process), far more than the delays themselves."""
+        q = self._outq
+        end = 1
+        while end < len(q) and not q[end][2] and q[end][0] <= q[0][0] + _COALESCE_S:
+            end += 1
+        return end
+
+    def _next_due(self) -> float | None:
+        return self._outq[self._run_end() - 1][0] if self._outq else None
+
     def _flush_out(self) -> None:
         """Send the status packets whose time has come."""
         now = time.monotonic()
-        while self._outq and self._outq[0][0] <= now:
-            self._write(self._outq.popleft()[1])
+        while self._outq:
+            end = self._run_end()
+            if self._outq[end - 1][0] > now:
+                return
+            self._write(b"".join(self._outq.popleft()[1] for _ in range(end)), packets=end)
 
     def _emit(self, servo_id: int, pkt: bytes, inst: int, delay_s: float = 0.0) -> None:
         """Queue a status packet: it starts ``delay_s`` (the servo's return delay, plus an injected delay)
@@ -330,13 +356,14 @@ class VirtualBus:
         if f.badcrc and self._rng.random() < f.badcrc:
             pkt = pkt[:-1] + bytes([pkt[-1] ^ 0x5A])
             self._note(f"injected: bad checksum from id {servo_id} to {_INST_NAMES.get(inst, hex(inst))}")
-        if f.delay_p and self._rng.random() < f.delay_p:
+        held = bool(f.delay_p) and self._rng.random() < f.delay_p
+        if held:
             delay_s += self._rng.uniform(f.delay_min_s, f.delay_max_s)
         due = max(time.monotonic(), self._line_free_at) + delay_s
         self._line_free_at = due
-        self._outq.append((due, pkt))
+        self._outq.append((due, pkt, held))
 
-    def _write(self, data: bytes) -> None:
+    def _write(self, data: bytes, packets: int = 1) -> None:
         if self._master is None:
             return
         try:
@@ -345,7 +372,7 @@ class VirtualBus:
             n = 0
         except OSError:
             return
-        self.stats["packets_out"] += 1
+        self.stats["packets_out"] += packets
         self.stats["bytes_out"] += n
         if n < len(data):
             self._note(f"output overflow: client not reading, {len(data) - n} bytes dropped")

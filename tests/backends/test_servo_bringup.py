@@ -48,8 +48,8 @@ def test_scan_reports_nothing_found_in_one_line(robots, capsys):
 
 
 def test_doctor_finds_return_delay_and_loose_limits_then_fixes_them(robots, capsys):
-    robot = make_robot(robots, n_joints=3, name="docbot")  # XL430: factory return delay 250 (500 us)
-    with VirtualBus(robot) as bus:
+    robot = make_robot(robots, n_joints=3, name="docbot")
+    with VirtualBus(robot, return_delay_time=None) as bus:  # XL430 as shipped: return delay 250 (500 us)
         args = ["servo", "doctor", "--port", bus.port, "--robot", "docbot"]
         assert main(args) == 1
         out = capsys.readouterr().out

@@ -53,7 +53,7 @@ def test_late_reply_of_the_same_length_is_never_used(tmp_path, monkeypatch):
             def begin_then_release_the_late_reply(*args, **kwargs):
                 k = begin(*args, **kwargs)
                 with bus._lock:  # the voltage reply goes out now, ahead of the temperature reply
-                    bus._outq[0] = (time.monotonic(), bus._outq[0][1])
+                    bus._outq[0] = (time.monotonic(), *bus._outq[0][1:])
                     bus._line_free_at = time.monotonic()
                 return k
 

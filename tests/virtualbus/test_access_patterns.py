@@ -74,9 +74,10 @@ def test_ax12_lock_leaves_only_24_to_35_writable_until_power_off(tmp_path):
 
 def test_x_series_eeprom_write_then_read_with_torque_off(tmp_path):
     """LeRobot's Dynamixel configure_motors() writes Return_Delay_Time 0 and reads it back."""
-    with VirtualBus(make_robot(tmp_path, n_joints=3)) as bus:
+    with VirtualBus(make_robot(tmp_path, n_joints=3), return_delay_time=None) as bus:  # factory: 250
         port, ph = _open(dxl, bus), dxl.PacketHandler(2.0)
         for sid in (1, 2, 3):
+            assert ph.read1ByteTxRx(port, sid, 9)[0] == 250
             assert ph.write1ByteTxRx(port, sid, 9, 0) == (dxl.COMM_SUCCESS, 0)
             assert ph.read1ByteTxRx(port, sid, 9) == (0, dxl.COMM_SUCCESS, 0)
             assert ph.write1ByteTxRx(port, sid, 11, 4) == (dxl.COMM_SUCCESS, 0)  # extended position mode
