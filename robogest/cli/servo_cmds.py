@@ -183,10 +183,9 @@ def _one(args: argparse.Namespace) -> int:
     try:
         ph, port = link.ph, link.port
         if args.func is _one and not hasattr(args, "register"):
-            model, comm, err = ph.ping(port, args.id)
-            if not link.ok(comm):
-                raise BackendError(f"servo id {args.id}: no answer to ping ({ph.getTxRxResult(comm)})")
-            print(f"id {args.id}: model {model} ({link.model_name(model)}), error byte 0x{err:02X}")
+            # a Model Number read, not the SDK's ping: scservo_sdk's raises on a short or late reply
+            model = link.read(args.id, link.reg("MODEL_NUMBER"))
+            print(f"id {args.id}: model {model} ({link.model_name(model)})")
             return 0
         name, addr, size = _resolve(link, args)
         if hasattr(args, "value"):

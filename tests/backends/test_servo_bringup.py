@@ -145,3 +145,14 @@ def test_jog_refuses_bad_requests_in_one_line(robots, capsys, argv, needle):
         assert not any(s.torque_on for s in bus.servos)
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0]
+
+
+def test_feetech_ping_with_late_replies_is_one_line_not_a_traceback(robots, capsys):
+    robot = make_robot(robots, family="feetech", protocol=0.0, n_joints=1, name="ftbot")
+    with VirtualBus(robot, "delay=0.2") as bus:  # every reply far after the deadline of all 3 attempts
+        assert main(["servo", "ping", "--port", bus.port, "--protocol", "sts", "--id", "1"]) == 5
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "servo id 1: reading MODEL_NUMBER" in err[0]
+    with VirtualBus(robot) as bus:
+        assert main(["servo", "ping", "--port", bus.port, "--protocol", "sts", "--id", "1"]) == 0
+    assert "id 1: model 777 (STS3215)" in capsys.readouterr().out
