@@ -176,6 +176,38 @@ class ServoLink:
         return found
 
 
+def baud_register_value(protocol: str, baud: int) -> int:
+    """The Baud Rate register value that selects ``baud``."""
+    from robogest.backends.dynamixel_tables import X_BAUDRATES
+    from robogest.backends.feetech_tables import FT_BAUDRATES
+
+    if protocol == "dxl1":
+        return round(2_000_000 / baud - 1)  # AX/MX: baud = 2 Mbps / (value + 1)
+    table = X_BAUDRATES if protocol == "dxl2" else FT_BAUDRATES
+    value = next((v for v, b in table.items() if b == baud), None)
+    if value is None:
+        rates = ", ".join(map(str, table.values()))
+        raise InputError(f"{protocol} servos cannot be set to {baud} baud; one of {rates}")
+    return value
+
+
+def set_baud(port: str, protocol: str, sid: int, old_baud: int, new_baud: int) -> None:
+    """Move one servo from ``old_baud`` to ``new_baud`` (torque off; a Feetech Lock is restored at the new rate)."""
+    value = baud_register_value(protocol, new_baud)
+    with ServoLink(port, protocol, old_baud) as link:
+        link.write(sid, link.reg("TORQUE_ENABLE"), 0)
+        lock = link.reg("LOCK") if "LOCK" in link.registers().__members__ else None
+        was = link.read(sid, lock) if lock is not None and protocol in ("sts", "scs") else 0
+        if was:
+            link.write(sid, lock, 0)
+        link.write(sid, link.reg("BAUD_RATE"), value, attempts=1)  # the reply may already come at the new rate
+    time.sleep(0.05)
+    with ServoLink(port, protocol, new_baud) as link:
+        link.read(sid, link.reg("MODEL_NUMBER"))  # answers at the new rate, or raises naming the servo
+        if was and lock is not None:
+            link.write(sid, lock, was)
+
+
 @dataclass
 class FoundServo:
     """One servo that answered a scan. Limits in ticks, as stored in the servo."""

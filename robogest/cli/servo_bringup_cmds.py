@@ -153,7 +153,7 @@ def _fit_joint(backend: Any, k: int, joint: str, ticks: dict[str, float], margin
 
 # --- doctor --------------------------------------------------------------------------------------
 def doctor(args: argparse.Namespace) -> int:
-    from robogest.backends.bringup import Finding, ServoLink, check_latency_timer, protocol_name, scan
+    from robogest.backends.bringup import Finding, ServoLink, check_latency_timer, protocol_name, scan, set_baud
 
     findings = [check_latency_timer(args.port, args.fix)]
     for f in findings:
@@ -171,6 +171,11 @@ def doctor(args: argparse.Namespace) -> int:
                 elsewhere = [f for f in scan(args.port, [proto], max_id=sid) if f.id == sid]
                 where = f"; it answers at {elsewhere[0].baud} baud" if elsewhere else ""
                 what = f"servo id {sid} (joint {j}): no answer at {robot.bus.baudrate} baud{where}"
+                if elsewhere and args.fix:
+                    set_baud(args.port, proto, sid, elsewhere[0].baud, robot.bus.baudrate)
+                    bus_found += [f for f in scan(args.port, [proto], [robot.bus.baudrate], max_id=sid) if f.id == sid]
+                    _say(findings, Finding("fixed", what + f"; moved to {robot.bus.baudrate} baud"))
+                    continue
                 _say(findings, Finding("error", what + "; set its Baud Rate register or the YAML's bus.baudrate"))
     else:
         bus_found = scan(args.port, args.protocol, args.baud)

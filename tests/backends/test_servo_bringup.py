@@ -64,6 +64,20 @@ def test_doctor_finds_return_delay_and_loose_limits_then_fixes_them(robots, caps
     assert 0 < lo < 2048 < hi < 4095
 
 
+def test_doctor_moves_a_servo_found_at_another_baud_to_the_yamls(robots, capsys):
+    robot = make_robot(robots, n_joints=2, name="docbot")
+    with VirtualBus(robot) as bus:
+        with bus._lock:
+            s2 = bus.servo(2)
+            s2._store(s2.spec.reg("baud"), 1)  # 57600 baud, as an XL430 leaves the factory
+        args = ["servo", "doctor", "--port", bus.port, "--robot", "docbot"]
+        assert main(args) == 1
+        assert "servo id 2 (joint j1): no answer at 1000000 baud; it answers at 57600 baud" in capsys.readouterr().out
+        main([*args, "--fix"])
+        assert "moved to 1000000 baud" in capsys.readouterr().out
+        assert s2.baudrate == 1_000_000
+
+
 def _set_tick(bus: VirtualBus, sid: int, tick: int) -> None:
     with bus._lock:  # a hand moves the joint (torque is off)
         s = bus.servo(sid)
