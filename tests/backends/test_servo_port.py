@@ -11,6 +11,7 @@ import robogest.backends.dynamixel
 import robogest.backends.feetech  # noqa: F401 - registers "feetech"
 from robogest.backends.base import get_backend_factory
 from robogest.backends.player import play
+from robogest.backends.servo_common import collect_status_packets
 from robogest.cli.main import main
 from robogest.errors import BackendError
 from robogest.robot.config import load_robot_config
@@ -124,3 +125,11 @@ def test_wrong_protocol_is_one_line_suggesting_scan(tmp_path, capsys):
     msg = str(e.value)
     assert "\n" not in msg and f"robogest servo scan --port {bus.port}" in msg
     assert msg.startswith(f"no servo answered on {bus.port} at 1000000 baud with dynamixel protocol 2")
+
+
+def test_collect_status_packets_skips_a_late_reply_of_another_length():
+    # id 1's late 1-byte reply (8 bytes in all) arrives before its 2-byte answer to this read (9 bytes)
+    stream = [([0, 1] + [0] * 6, True), ([0, 1] + [0] * 7, True), ([0, 2] + [0] * 7, True)]
+    got = collect_status_packets([1, 2], lambda: stream.pop(0) if stream else ([], False), lambda: not stream,
+                                 id_at=1, length=9)  # fmt: skip
+    assert got == {1: [0, 1] + [0] * 7, 2: [0, 2] + [0] * 7}
