@@ -26,6 +26,8 @@ from robogest.backends.servo_common import ServoBackend, ServoModel, describe_bi
 from robogest.errors import ConfigError
 from robogest.robot.config import RobotConfig
 
+#: X-series models whose address 126 is Present Current (mA units), not Present Load (0.1 %).
+CURRENT_SENSING = frozenset({"XM430-W350", "XL330-M288"})
 #: Protocol 2.0 status packet: id at 4, error byte at 8, parameters from 9, two CRC bytes (dynamixel_sdk PKT_*).
 P2_STATUS_LAYOUT = (4, 8, 9, 2)
 
@@ -73,6 +75,9 @@ class DynamixelBackend(ServoBackend):
         if reg in X_SIGNED:
             return _to_signed(raw, reg.value[1])
         return sign_magnitude_decode(raw, P1_SIGN_BITS.get(reg))  # type: ignore[call-overload]
+
+    def _load_is_percent(self, k: int) -> bool:
+        return k < 0 or self.models[k].name not in CURRENT_SENSING  # these report current at address 126
 
     def _has_sync_read(self) -> bool:
         return self.protocol == 2.0  # Protocol 1.0 has no SYNC READ: one read per servo

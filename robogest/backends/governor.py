@@ -59,10 +59,12 @@ class Governor:
     min_factor_seen: float = 1.0  #: lowest factor applied outside lengthened rests (for reports)
     holds: int = 0  #: rests that were lengthened
 
-    def observe(self, servo_id: int, temperature_c: float, load_pct: float, now_s: float | None = None) -> None:
-        """One health reading of one servo."""
+    def observe(self, servo_id: int, temperature_c: float, load_pct: float | None, now_s: float | None = None) -> None:
+        """One health reading of one servo (``load_pct`` None: the servo reports no load percentage)."""
         now = time.monotonic() if now_s is None else now_s
         self.temperatures_c[servo_id] = float(temperature_c)
+        if load_pct is None:
+            return
         prev, t_prev = self.loads_pct.get(servo_id), self._last_obs_s.get(servo_id)
         load = abs(float(load_pct))
         if prev is None or t_prev is None:

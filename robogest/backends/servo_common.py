@@ -403,6 +403,10 @@ class ServoBackend(Backend):
             out[sid] = (self._decode(reg, self._from_bus_bytes(params[k:])), True, err, "ok")
         return out
 
+    def _load_is_percent(self, k: int) -> bool:
+        """Whether joint ``k``'s load register holds 0.1 % of the maximum (current-sensing models hold mA)."""
+        return True
+
     def _hardware_error(self, sid: int, err: int) -> str | None:
         """Text of the fault flagged by status error byte ``err``, or None when it is clean."""
         raise NotImplementedError
@@ -777,7 +781,8 @@ class ServoBackend(Backend):
         """Read one servo's health, feed the governor, and stop past the hard limits."""
         h = self.read_health(sid)
         before = self.governor.target_factor()
-        self.governor.observe(sid, h["temperature_c"], h["load_pct"])
+        k = int(np.nonzero(self.ids == sid)[0][0]) if sid in self.ids else -1
+        self.governor.observe(sid, h["temperature_c"], h["load_pct"] if self._load_is_percent(k) else None)
         after = self.governor.target_factor()
         if self.governor.enabled and after < 1.0 <= before:
             self.events.append(

@@ -6,6 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import robogest.backends.dynamixel
 import robogest.backends.feetech  # noqa: F401 - registers "feetech"
 from robogest.backends.base import get_backend_factory
 from robogest.backends.governor import Governor, GovernorConfig
@@ -109,3 +110,15 @@ def test_long_monologue_ends_cooler_with_the_governor(tmp_path):
     assert final[True] < final[False] - 4.0, final  # measured: 47.5 vs 57 °C
     assert states[False]["lowest_factor"] == 1.0
     assert states[True]["lowest_factor"] < 0.9 and states[True]["lengthened_rests"] >= 1
+
+
+def test_current_sensing_servos_do_not_feed_load_to_the_governor(tmp_path):
+    """XM430/XL330 hold Present Current (mA units) where XL430 holds Present Load (0.1 %)."""
+    g = hot(40.0)
+    g.observe(1, 40.0, None, now_s=60.0)
+    assert g.target_factor() == 1.0 and 1 in g.temperatures_c
+    robot = make_robot(tmp_path, model="XM430-W350", n_joints=1)
+    xm = get_backend_factory("dynamixel")(robot, port="/dev/null")
+    assert not xm._load_is_percent(0)
+    xl = get_backend_factory("dynamixel")(make_robot(tmp_path / "xl", n_joints=1), port="/dev/null")
+    assert xl._load_is_percent(0)
