@@ -26,7 +26,7 @@ CHAINS = [("dynamixel", 2.0), ("feetech", 0.0)]  # P1 has no sync read: one repl
 def test_late_replies_of_5_to_20_ms_cause_no_false_stop(tmp_path, family, protocol):
     """Replies delayed past their deadline used to be read as the answer to the next request
     ("temperature 195 °C", "supply voltage 591.8 V"); now they are skipped by id and length."""
-    robot = make_robot(tmp_path, family=family, protocol=protocol, n_joints=5)
+    robot = make_robot(tmp_path, family=family, protocol=protocol, n_joints=4)
     with VirtualBus(robot, "delay=0.005:0.02/0.3,seed=2") as bus:
         backend = get_backend_factory(family)(robot, port=bus.port, health_hz=25)
         report = play(sine_traj(robot, seconds=2.0), backend, time_scale=2.0)
