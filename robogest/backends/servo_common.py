@@ -884,7 +884,7 @@ def open_port_exclusive(sdk: Any, port_name: str, baudrate: int) -> Any:
                 "stop it first"
             ) from None
         raise BackendError(f"cannot open serial port {port_name}: {e}") from None
-    with contextlib.suppress(OSError, termios.error):
+    with contextlib.suppress(OSError, termios.error, AttributeError):
         fcntl.ioctl(ser.fileno(), termios.TIOCEXCL)
     ser.reset_input_buffer()
     handler.ser, handler.is_open, handler.baudrate = ser, True, baudrate
@@ -900,7 +900,7 @@ def close_port(handler: Any) -> None:
     ser = getattr(handler, "ser", None)
     if ser is None or not ser.is_open:
         return
-    with contextlib.suppress(OSError, termios.error, ValueError):
+    with contextlib.suppress(OSError, termios.error, ValueError, AttributeError):
         fcntl.ioctl(ser.fileno(), termios.TIOCNXCL)
     with contextlib.suppress(Exception):
         handler.closePort()
