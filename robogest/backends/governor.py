@@ -56,7 +56,7 @@ class Governor:
     _last_shape_s: float | None = None
     _hold_until_s: float = 0.0
     _rest_since_s: float | None = None
-    min_factor_seen: float = 1.0  #: lowest factor applied outside lengthened rests (for reports)
+    min_factor_seen: float = 1.0  #: lowest target factor the readings called for during shaping (for reports)
     holds: int = 0  #: rests that were lengthened
 
     def observe(self, servo_id: int, temperature_c: float, load_pct: float | None, now_s: float | None = None) -> None:
@@ -101,6 +101,7 @@ class Governor:
         rest = np.asarray(rest_q_rad, float)
         dev = float(np.max(np.abs(q - rest))) if q.size else 0.0
         goal = self.target_factor()
+        self.min_factor_seen = min(self.min_factor_seen, goal)
         resting = False
         if dev <= c.rest_tol_rad:
             self._rest_since_s = now if self._rest_since_s is None else self._rest_since_s
@@ -114,8 +115,6 @@ class Governor:
             goal = 0.0  # during a rest (invisible there) and the hold after it
         step = dt * min(c.max_rate_per_s, c.extra_speed_rad_s / max(dev, 1e-9))
         self.factor = float(np.clip(goal, self.factor - step, self.factor + step))
-        if goal > 0.0:
-            self.min_factor_seen = min(self.min_factor_seen, self.factor)
         return rest + self.factor * (q - rest)
 
     def reset(self) -> None:
