@@ -133,6 +133,8 @@ class SimServo:
             value = self._decode(r, data[a - addr : a - addr + r.size])
             if (r.lo is not None and value < r.lo) or (r.hi is not None and value > r.hi):
                 return ERR_RANGE
+            if r.allowed is not None and value not in r.allowed:
+                return ERR_RANGE
             x_series = self.spec.family == "dynamixel" and self.spec.eeprom_locked_by_torque
             if x_series and r.name == self.spec.roles["goal"] and not self.get("min") <= value <= self.get("max"):
                 return ERR_RANGE  # X-series position mode refuses goals past the limits

@@ -32,6 +32,7 @@ class Reg:
     sign_bit: int | None = None  #: sign-magnitude, bit holding the sign (Feetech, Dynamixel P1 speed/load)
     lo: int | None = None  #: writes below are answered with a range error
     hi: int | None = None
+    allowed: tuple[int, ...] | None = None  #: the only values accepted (e.g. a model's operating modes)
 
 
 @dataclass(frozen=True)
@@ -98,7 +99,7 @@ def _x_series(
         _R("Baud_Rate", 8, 1, "RW", 1, lo=0, hi=7),
         _R("Return_Delay_Time", 9, 1, "RW", 250),
         _R("Drive_Mode", 10, 1, "RW", 0),
-        _R("Operating_Mode", 11, 1, "RW", 3),
+        _R("Operating_Mode", 11, 1, "RW", 3, allowed=(0, 1, 3, 4, 5, 16) if current else (1, 3, 4, 16)),
         _R("Secondary_ID", 12, 1, "RW", 255),
         _R("Protocol_Type", 13, 1, "RW", 2),
         _R("Homing_Offset", 20, 4, "RW", 0, signed=True),

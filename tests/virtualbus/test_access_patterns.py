@@ -82,6 +82,7 @@ def test_x_series_eeprom_write_then_read_with_torque_off(tmp_path):
             assert ph.read1ByteTxRx(port, sid, 9) == (0, dxl.COMM_SUCCESS, 0)
             assert ph.write1ByteTxRx(port, sid, 11, 4) == (dxl.COMM_SUCCESS, 0)  # extended position mode
             assert ph.read1ByteTxRx(port, sid, 11)[0] == 4
+            assert ph.write1ByteTxRx(port, sid, 11, 5) == (dxl.COMM_SUCCESS, 0x04)  # no current mode on an XL430
         port.closePort()
 
 
