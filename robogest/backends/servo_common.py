@@ -78,6 +78,9 @@ class ServoBackend(Backend):
     warn_temperature_c : float, optional
         Where the governor starts acting; default ``max_temperature_c - 10``. It starts on load at 60 %
         (or 60 % of ``max_load_pct`` when that is set).
+    check_limits : bool
+        Refuse to connect when the joint limits map outside the servos' position-limit registers;
+        ``servo calibrate`` turns it off (the zero offsets it replaces may be what is wrong).
     late_reply_window_s : float
         How long a reply that missed its deadline may still arrive. Every reply is matched to its
         request by servo id and length; within this window a read whose answer could not be told apart
@@ -108,6 +111,7 @@ class ServoBackend(Backend):
         late_reply_window_s: float = 0.5,
         governor: bool = True,
         warn_temperature_c: float | None = None,
+        check_limits: bool = True,
         **_ignored: Any,
     ) -> None:
         super().__init__(robot)
@@ -134,6 +138,7 @@ class ServoBackend(Backend):
         self.max_load_pct = max_load_pct
         self.shutdown_rate_hz = shutdown_rate_hz
         self.late_reply_window_s = late_reply_window_s
+        self.check_limits = check_limits
         load_limit = max_load_pct if max_load_pct is not None else 100.0
         self.governor = Governor(
             GovernorConfig(
@@ -616,7 +621,8 @@ class ServoBackend(Backend):
             lo = self._sync_read(self.REG["min"])
             hi = self._sync_read(self.REG["max"])
             self._tick_lo, self._tick_hi = np.minimum(lo, hi), np.maximum(lo, hi)
-            self._check_limits_fit()
+            if self.check_limits:
+                self._check_limits_fit()
             for sid in self.ids:
                 self._budget = self.tick_retry_budget
                 self._volt_limits[int(sid)] = self.voltage_range_v or self._voltage_limits_v(int(sid))

@@ -14,7 +14,7 @@ import numpy as np
 from robogest.errors import ConfigError, InputError
 
 
-def _robot_backend(name: str, port: str | None) -> tuple[Any, Any]:
+def _robot_backend(name: str, port: str | None, **options: Any) -> tuple[Any, Any]:
     import robogest.backends.dynamixel
     import robogest.backends.feetech  # noqa: F401 - register the servo backends
     from robogest.backends.base import get_backend_factory
@@ -23,7 +23,7 @@ def _robot_backend(name: str, port: str | None) -> tuple[Any, Any]:
     robot = find_robot(name)
     if robot.bus is None:
         raise ConfigError(f"robot {robot.name!r} has no bus section; add bus: family, protocol, baudrate, servos")
-    return robot, get_backend_factory(robot.bus.family)(robot, port=port)
+    return robot, get_backend_factory(robot.bus.family)(robot, port=port, **options)
 
 
 def _joint_index(robot: Any, joint: str) -> int:
@@ -77,7 +77,7 @@ def calibrate(args: argparse.Namespace) -> int:
 
     from robogest.robot.config import load_robot_config
 
-    robot, backend = _robot_backend(args.robot, args.port)
+    robot, backend = _robot_backend(args.robot, args.port, check_limits=False)
     src = Path(robot.path) if robot.path is not None else None
     if src is None:
         raise InputError(f"robot {robot.name!r} has no YAML file to copy")
@@ -126,7 +126,10 @@ def calibrate(args: argparse.Namespace) -> int:
             f"{j}: zero_offset_rad {m['zero_offset_rad']:+.4f}, direction {int(m['direction']):+d}, "
             f"limits [{m['lower_rad']:+.3f}, {m['upper_rad']:+.3f}] rad"
         )
-    print(f"wrote {out} (the original {src} is unchanged; review the copy, then use --robot {out})")
+    print(
+        f"wrote {out} (the original {src} is unchanged); review the copy, then "
+        f"`robogest servo doctor --port {backend.port_name} --robot {out} --fix` writes its limits into the servos"
+    )
     return 0
 
 

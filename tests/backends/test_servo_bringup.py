@@ -104,6 +104,9 @@ def test_calibrate_writes_offsets_directions_and_limits_to_a_copy(robots, capsys
     robot = make_robot(robots, n_joints=2, name="calbot")
     original = (robots / "calbot.yaml").read_text()
     with VirtualBus(robot) as bus:
+        with bus._lock:  # servo limits the uncalibrated YAML does not fit in: connect alone would refuse
+            for r, v in (("min", 1500), ("max", 2600)):
+                bus.servo(1)._store(bus.servo(1).spec.reg(r), v)
         # j0: zero at tick 2100, upper end at 1300 (the servo turns the other way), lower end at 2800
         # j1: zero at 2048, upper at 2700, lower at 1500
         moves = [(1, 2100), (1, 1300), (1, 2800), (2, 2048), (2, 2700), (2, 1500)]
