@@ -41,6 +41,7 @@ class GovernorConfig:
     rest_min_s: float = 0.25  #: a target within rest_tol_rad of rest this long is a rest, not a crossing
     hold_max_s: float = 2.0
     load_smoothing_s: float = 2.0  #: time constant of the moving average applied to |load|
+    new_playback_after_s: float = 1.0  #: a gap between targets this long starts over at factor 1
 
 
 @dataclass
@@ -96,6 +97,8 @@ class Governor:
             return q.copy()
         c = self.config
         now = time.monotonic() if now_s is None else now_s
+        if self._last_shape_s is not None and now - self._last_shape_s > c.new_playback_after_s:
+            self.reset()  # a new playback: its first target is where the robot already is, so start at 1
         dt = 0.0 if self._last_shape_s is None else max(0.0, now - self._last_shape_s)
         self._last_shape_s = now
         rest = np.asarray(rest_q_rad, float)

@@ -45,6 +45,16 @@ def test_cool_servos_leave_targets_alone_and_hot_ones_shrink_gestures():
     assert Governor(enabled=False).shape(q, REST).tolist() == q.tolist()
 
 
+def test_a_new_playback_starts_where_the_robot_is():
+    """After a pause the first target passes unchanged (the player holds the present pose before torque on)."""
+    g = hot(62.0)
+    for k in range(100):
+        g.shape(np.full(3, 0.02), REST, now_s=0.02 * k)
+    assert g.factor < 0.7
+    q_now = np.array([0.5, -0.3, 0.2])
+    assert np.array_equal(g.shape(q_now, REST, now_s=10.0), q_now)
+
+
 def test_hot_rest_is_held_longer():
     g = hot(62.0)
     t = np.arange(0.0, 6.0, 0.02)
