@@ -66,8 +66,17 @@ def jog(args: argparse.Namespace) -> int:
 
 
 # --- calibrate -----------------------------------------------------------------------------------
-def _ask(prompt: str) -> None:
+def _ask(prompt: str, sample: Any = None) -> None:
+    """Wait for Enter; meanwhile call ``sample()`` at ~20 Hz when stdin can be polled (a terminal or pipe)."""
+    import select
+
     print(prompt, file=sys.stderr, flush=True)
+    try:
+        pollable = sample is not None and sys.stdin.fileno() >= 0
+    except (AttributeError, OSError, ValueError):
+        pollable = False
+    while pollable and not select.select([sys.stdin], [], [], 0.05)[0]:
+        sample()
     if sys.stdin.readline() == "":
         raise InputError("calibration needs an answer (Enter) at each step; stdin was closed")
 
@@ -96,15 +105,25 @@ def calibrate(args: argparse.Namespace) -> int:
         print("torque is off: move the joints by hand as asked (support the arms)", file=sys.stderr)
         for j in joints:
             k = robot.joint_names.index(j)
-            ticks = {}
+            ticks: dict[str, float] = {}
+            seen: list[float] = []  # every reading while the joint travels to its ends
+
+            def tick_now(k: int = k) -> float:
+                return float(backend.rad_to_ticks(backend.read_positions())[k])
+
+            def sample(seen: list[float] = seen) -> None:
+                seen.append(tick_now())
+
             for step, where in (
                 ("zero", "its zero pose (0 rad in the robot's convention)"),
                 ("upper", "its upper end (the positive direction)"),
-                ("lower", "its lower end"),
+                ("lower", "its lower end, through its whole range"),
             ):
-                _ask(f"{j}: move it to {where}, then press Enter")
-                ticks[step] = float(backend.rad_to_ticks(backend.read_positions())[k])
-            measured[j] = _fit_joint(backend, k, j, ticks, args.margin_rad)
+                _ask(f"{j}: move it to {where}, then press Enter", None if step == "zero" else sample)
+                ticks[step] = tick_now()
+                if step != "zero":
+                    seen.append(ticks[step])
+            measured[j] = _fit_joint(backend, k, j, ticks, seen, args.margin_rad)
     finally:
         backend.shutdown()
 
@@ -133,8 +152,11 @@ def calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _fit_joint(backend: Any, k: int, joint: str, ticks: dict[str, float], margin: float) -> dict[str, float]:
-    """Zero offset, direction and limits from the ticks read at the zero pose and at both ends."""
+def _fit_joint(
+    backend: Any, k: int, joint: str, ticks: dict[str, float], seen: list[float], margin: float
+) -> dict[str, float]:
+    """Zero offset, direction and limits from the ticks read at the zero pose, at both ends, and on the way
+    (the furthest reading on each side is the end)."""
     servo = backend.robot.bus.servos[joint]
     model = backend.models[k]
     per_rad = model.ticks_per_rev / (2 * math.pi)
@@ -144,7 +166,8 @@ def _fit_joint(backend: Any, k: int, joint: str, ticks: dict[str, float], margin
     def rad(tick: float) -> float:
         return ((tick - model.centre_tick) / per_rad - zero) / (servo.gear_ratio * direction)
 
-    upper, lower = rad(ticks["upper"]) - margin, rad(ticks["lower"]) + margin
+    far_up, far_down = (max(seen), min(seen)) if direction > 0 else (min(seen), max(seen))
+    upper, lower = rad(far_up) - margin, rad(far_down) + margin
     if not lower < 0.0 < upper:
         raise InputError(
             f"joint {joint}: measured range [{lower + margin:+.3f}, {upper - margin:+.3f}] rad does not hold the "

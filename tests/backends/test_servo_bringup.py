@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import threading
 import time
 
 import numpy as np
@@ -173,3 +175,60 @@ def test_feetech_ping_with_late_replies_is_one_line_not_a_traceback(robots, caps
     with VirtualBus(robot) as bus:
         assert main(["servo", "ping", "--port", bus.port, "--protocol", "sts", "--id", "1"]) == 0
     assert "id 1: model 777 (STS3215)" in capsys.readouterr().out
+
+
+class _Console:
+    """stderr that tells a test thread when ``servo calibrate`` asks for the next step."""
+
+    def __init__(self) -> None:
+        self.prompts = 0
+        self.cond = threading.Condition()
+
+    def write(self, text: str) -> int:
+        if "press Enter" in text:
+            with self.cond:
+                self.prompts += 1
+                self.cond.notify_all()
+        return len(text)
+
+    def flush(self) -> None:
+        pass
+
+    def wait_for(self, n: int) -> None:
+        with self.cond:
+            assert self.cond.wait_for(lambda: self.prompts >= n, timeout=30)
+
+
+def test_calibrate_takes_the_furthest_reading_on_the_way_as_the_end(robots, monkeypatch):
+    """With a real stdin the joint is sampled while it travels: overshooting an end before pressing Enter
+    counts (the limit is the furthest point reached, not where Enter was pressed)."""
+    robot = make_robot(robots, n_joints=1, name="calbot")
+    r, w = os.pipe()
+    console = _Console()
+    monkeypatch.setattr("sys.stdin", os.fdopen(r, "r"))
+    monkeypatch.setattr("sys.stderr", console)
+    with VirtualBus(robot) as bus:
+
+        def settle_at(tick: int) -> None:
+            _set_tick(bus, 1, tick)
+            seen = bus.stats["packets_in"]
+            t_end = time.monotonic() + 10
+            while bus.stats["packets_in"] < seen + 3 and time.monotonic() < t_end:  # sampled since
+                time.sleep(0.01)
+
+        def hand() -> None:
+            for k, stops in enumerate(([2108], [2948, 2748], [1248, 1448]), start=1):
+                console.wait_for(k)
+                for tick in stops:
+                    settle_at(tick)
+                os.write(w, b"\n")
+
+        t = threading.Thread(target=hand, daemon=True)
+        t.start()
+        assert main(["servo", "calibrate", "--robot", "calbot", "--port", bus.port]) == 0
+        t.join(timeout=10)
+    os.close(w)
+    doc = yaml.safe_load((robots / "calbot.calibrated.yaml").read_text())
+    per_rad = 4096 / (2 * np.pi)
+    assert doc["joints"][0]["upper_rad"] == pytest.approx(840 / per_rad - 0.05, abs=2e-3)  # 2948, not 2748
+    assert doc["joints"][0]["lower_rad"] == pytest.approx(-860 / per_rad + 0.05, abs=2e-3)  # 1248, not 1448
