@@ -97,7 +97,7 @@ def test_port_disconnect_mid_speech_stops_with_one_line(capsys):
             deadline = time.monotonic() + 60
             while not any(s.torque_on for s in bus.servos) and time.monotonic() < deadline:
                 time.sleep(0.01)
-            bus.faults.disconnect_at_s = bus.elapsed_s() + 0.5
+            bus.faults.disconnect_at_s = bus.elapsed_s + 0.5
 
         watcher = threading.Thread(target=disconnect_once_moving, daemon=True)
         watcher.start()
