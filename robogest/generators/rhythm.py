@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robogest.generators import lexicon as lx
+from robogest.generators.acoustic import AcousticBeats, acoustic_beats
 from robogest.generators.base import Generator, register_generator
 from robogest.generators.poses import DOF, HEAD_DOFS, N_DOF, READY, REST, dofs_to_rotations
 from robogest.motion.human_motion import HumanMotion
@@ -67,6 +68,8 @@ class RhythmConfig:
     prep_speed_ratio : float
         Preparations peak at most at this fraction of ``max_wrist_speed_m_s``, so the stroke stays the
         fastest phase (and leaving rest after a pause is unhurried).
+    hold_scale : float
+        Multiplies every unit's post-stroke hold.
     """
 
     fps: float | None = None
@@ -83,6 +86,7 @@ class RhythmConfig:
     max_wrist_speed_m_s: float = 2.4
     stroke_scale: float = 1.8
     prep_speed_ratio: float = 0.7
+    hold_scale: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -133,29 +137,6 @@ def _words_lower(speech: Speech) -> list[str]:
     return [re.sub(r"[^a-z']", "", w.text.lower()) for w in speech.words]
 
 
-def _prominence(speech: Speech, t_s: np.ndarray) -> np.ndarray:
-    """Loudness + pitch prominence at times ``t_s (B,)``, in [0, 1]."""
-    f = speech.features
-    if f.n_frames == 0 or len(t_s) == 0:
-        return np.zeros(len(t_s))
-    db = 20 * np.log10(np.maximum(f.rms, 1e-6))  # (T,)
-    speaking = ~f.silence
-    ref = db[speaking] if speaking.any() else db
-    lo, hi = np.percentile(ref, 10), np.percentile(ref, 95)
-    k = np.clip(np.round(t_s * f.fps).astype(int), 0, f.n_frames - 1)
-    # Loudness over a short window around the beat (the onset frame itself is often still rising).
-    win = np.stack([db[np.clip(k + d, 0, f.n_frames - 1)] for d in (-1, 0, 1, 2)]).max(axis=0)
-    energy = np.clip((win - lo) / max(hi - lo, 1e-6), 0, 1)
-    voiced = f.pitch_hz > 0
-    if voiced.sum() >= 3:
-        lp = np.log(f.pitch_hz[voiced])
-        z = (np.log(np.maximum(f.pitch_hz[k], 1.0)) - lp.mean()) / max(lp.std(), 1e-3)
-        pitch = np.where(f.pitch_hz[k] > 0, np.clip(0.5 + 0.25 * z, 0, 1), 0.3)
-    else:
-        pitch = np.full(len(t_s), 0.3)
-    return 0.7 * energy + 0.3 * pitch
-
-
 @register_generator("rhythm")
 class RhythmGenerator(Generator):
     """Rule-based, beat-synchronous gestures from a hand-authored lexicon; works on a fresh install."""
@@ -181,48 +162,51 @@ class RhythmGenerator(Generator):
                 out.append((t0, t1))
         return out
 
+    def beats(self, speech: Speech) -> AcousticBeats:
+        """Where strokes may land: :func:`acoustic.acoustic_beats` of the speech, outside silent periods."""
+        return acoustic_beats(speech.audio, speech.sr, tuple(speech.silent_spans))
+
     def plan(self, speech: Speech, seed: int = 0) -> list[GestureEvent]:
-        """Choose arm and head events (time, unit, amplitude); deterministic for a seed."""
+        """Choose arm and head events (time, unit, amplitude) on acoustic beats; deterministic for a seed.
+
+        Decisions are drawn beat by beat in time order, so a prefix of the beats (a partial utterance, as
+        when streaming) gets the same choices it gets in the whole utterance.
+        """
         c = self.config
         rng = np.random.default_rng(seed)
-        silent = list(speech.silent_spans)
-
-        def in_silence(t: float, pad: float = 0.05) -> bool:
-            return any(a + pad < t < b - pad for a, b in silent)
-
-        beats = np.array([b for b in speech.beats_s if not in_silence(float(b))])
-        prom = _prominence(speech, beats)
+        ab = self.beats(speech)
+        beats, prom = ab.t_s, ab.prominence
         events: list[GestureEvent] = []
         taken: set[int] = set()
-        # Keyword units first: they take the beat nearest the word's start.
+        # Keyword units take the acoustic beat in their word (none: no semantic stroke, never off the beat).
         words = _words_lower(speech)
         for i, w in enumerate(speech.words):
             key = words[i]
             pair = f"{key} {words[i + 1]}" if i + 1 < len(words) else ""
             unit = lx.KEYWORDS.get(pair) or lx.KEYWORDS.get(key)
-            if unit is None:
+            if unit is None or not len(beats):
                 continue
-            near = np.where((beats >= w.start_s - 0.1) & (beats <= w.end_s))[0] if len(beats) else np.array([], int)
-            if len(near):
-                bi = int(near[0])
-                t, p = float(beats[bi]), float(prom[bi])
-                taken.add(bi)
-            else:
-                t = w.start_s + min(0.15, 0.5 * (w.end_s - w.start_s))
-                p = float(_prominence(speech, np.array([t]))[0])
-            events.append(GestureEvent(t, unit, c.amplitude * (0.6 + 0.4 * p), f"keyword:{key}"))
+            near = np.where((beats >= w.start_s - 0.1) & (beats <= w.end_s))[0]
+            near = [int(k) for k in near if int(k) not in taken]
+            if not near:
+                continue
+            bi = near[0]
+            taken.add(bi)
+            p = float(prom[bi])
+            events.append(GestureEvent(float(beats[bi]), unit, c.amplitude * (0.6 + 0.4 * p), f"keyword:{key}"))
         # Ordinary beats: the statistical interpreter picks arm units; some beats get head beats.
         counts = np.zeros(len(lx.ARM_LEXEMES))
         prev: int | None = None
         for bi, (t, p) in enumerate(zip(beats, prom, strict=True)):
+            r_arm, r_head = rng.random(), rng.random()  # always two draws per beat: prefix-stable
             if bi in taken:
                 continue
-            if rng.random() < c.gesture_rate * (0.35 + 0.65 * p):
+            if r_arm < c.gesture_rate * (0.35 + 0.65 * p):
                 k = lx.next_lexeme(prev, counts, float(p), rng)
                 counts[k] += 1
                 prev = k
                 events.append(GestureEvent(float(t), lx.ARM_LEXEMES[k], c.amplitude * (0.45 + 0.55 * p), "beat"))
-            if p > 0.5 and rng.random() < c.head_beat_prob * p:
+            if p > 0.5 and r_head < c.head_beat_prob * p:
                 events.append(GestureEvent(float(t), "head_beat", c.amplitude * p, "beat"))
         events.sort(key=lambda e: (e.t_s, e.source == "beat"))
         return events
@@ -244,12 +228,31 @@ class RhythmGenerator(Generator):
             self._fk_cache[key] = float(np.linalg.norm(np.diff(w, axis=0), axis=-1).max() * (len(s) - 1))
         return 1.875 * self._fk_cache[key] / self.config.max_wrist_speed_m_s
 
+    def _prep_beat(self, beats_s: np.ndarray, free_s: float, s0: float, need_s: float) -> float | None:
+        """The latest beat ``b`` before ``s0`` on which a preparation ending at ``s0`` can be centred: it lasts
+        ``2 (s0 - b)``, at least ``need_s`` and at most ``2 prep_s``, and starts after ``free_s``."""
+        c = self.config
+        ok = (beats_s < s0 - need_s / 2 + 1e-9) & (beats_s >= s0 - c.prep_s) & (2 * beats_s - s0 >= free_s - 1e-9)
+        return float(beats_s[ok][-1]) if ok.any() else None
+
+    def _relax_on_beat(self, tr: _Track, beats_s: np.ndarray, before_s: float) -> None:
+        """In a long gap, settle into READY with a slow move centred on a free beat (its peak on the beat)."""
+        c = self.config
+        half = max(0.35, self._min_time_s(tr.last_v, READY) / c.prep_speed_ratio / 2)
+        ok = (beats_s - half >= tr.last_t) & (beats_s + half <= before_s)
+        if ok.any():
+            b = float(beats_s[ok][0])
+            tr.add(b - half, tr.last_v)
+            tr.add(b + half, READY)
+
     def _arm_track(
-        self, events: list[GestureEvent], rests: list[tuple[float, float]], end_s: float
+        self, events: list[GestureEvent], rests: list[tuple[float, float]], end_s: float, beats_s: np.ndarray
     ) -> tuple[_Track, list[tuple[float, float, GestureEvent]]]:
-        """Arm/spine keyframes: each gesture is prep -> stroke (centred on its beat) -> hold; between gestures
-        the arms flow straight into the next preparation, relax to READY in longer gaps, and sit exactly at
-        REST in rest windows. Also returns the placed strokes ``(start_s, end_s, event)``."""
+        """Arm/spine keyframes: each gesture is prep -> stroke (centred on its beat) -> hold. Every move made
+        while speaking is centred on an acoustic beat (preparations and relaxations are slower than strokes);
+        where speech goes on without a chosen beat the pose is held; in rest windows the arms sit exactly
+        at REST (the retraction starts when the pause does). Also returns the placed strokes
+        ``(start_s, end_s, event)``."""
         c = self.config
         placed: list[tuple[float, float, GestureEvent]] = []
         tr = _Track()
@@ -272,21 +275,32 @@ class RhythmGenerator(Generator):
             stroke_pose = READY + e.amplitude * u.stroke
             stroke_s = max(c.stroke_scale * u.stroke_s, self._min_time_s(prep_pose, stroke_pose))
             s0, s1 = e.t_s - stroke_s / 2, e.t_s + stroke_s / 2
-            hold_end = s1 + u.hold_s
-            need = max(c.min_prep_s, self._min_time_s(tr.last_v, prep_pose) / c.prep_speed_ratio)
-            prep_start = max(tr.last_t, s0 - max(c.prep_s, need))
+            hold_end = s1 + c.hold_scale * u.hold_s
             nxt = [r0 for r0, _ in rests if r0 > tr.last_t]
-            if s0 - prep_start < need - 1e-9:
-                continue  # no time to prepare at a natural speed
+            if s0 < tr.last_t + 1e-6:
+                continue  # still busy with the previous gesture
             if nxt and hold_end + max(c.retract_s, self._min_time_s(stroke_pose, REST)) > nxt[0]:
                 continue  # it would run into a rest period
-            if prep_start - tr.last_t > c.ready_after_s:
-                relax = max(0.5, self._min_time_s(tr.last_v, READY))
-                if prep_start - tr.last_t > relax + need:
-                    tr.add(tr.last_t + relax, READY)  # settle into the ready pose while waiting
-            tr.add(prep_start, tr.last_v)
-            tr.add(s0, prep_pose)
-            tr.add(s1, stroke_pose)
+            if s0 - tr.last_t > c.ready_after_s + 2 * c.prep_s:
+                self._relax_on_beat(tr, beats_s, s0 - c.prep_s)
+            # Preparation: a slower move into the prep pose whose speed peak lies on an earlier acoustic beat,
+            # so it never adds a peak off the beat. Without such a beat the stroke starts from the held pose.
+            need = max(c.min_prep_s, self._min_time_s(tr.last_v, prep_pose) / c.prep_speed_ratio)
+            prep_beat = self._prep_beat(beats_s, tr.last_t, s0, need)
+            if prep_beat is not None:
+                tr.add(2 * prep_beat - s0, tr.last_v)
+                tr.add(s0, prep_pose)
+                tr.add(s1, stroke_pose)
+            else:
+                half = max(stroke_s, self._min_time_s(tr.last_v, stroke_pose)) / 2
+                if e.t_s - half < tr.last_t + 1e-6:
+                    continue  # no time for the stroke at a natural speed
+                s0, s1 = e.t_s - half, e.t_s + half
+                hold_end = s1 + c.hold_scale * u.hold_s
+                if nxt and hold_end + max(c.retract_s, self._min_time_s(stroke_pose, REST)) > nxt[0]:
+                    continue
+                tr.add(s0, tr.last_v)
+                tr.add(s1, stroke_pose)
             placed.append((s0, s1, e))
             tr.add(hold_end, stroke_pose)
         if not rests or rests[-1][1] < end_s - 1e-6:
@@ -296,7 +310,8 @@ class RhythmGenerator(Generator):
 
     def strokes(self, speech: Speech, seed: int = 0) -> list[tuple[float, float, GestureEvent]]:
         """The arm strokes :meth:`generate` makes: ``(start_s, end_s, event)``, speed peak at ``event.t_s``."""
-        return self._arm_track(self.plan(speech, seed), self.rest_windows(speech), speech.duration_s)[1]
+        beats = self.beats(speech).t_s
+        return self._arm_track(self.plan(speech, seed), self.rest_windows(speech), speech.duration_s, beats)[1]
 
     def _head_track(self, events: list[GestureEvent], rests: list[tuple[float, float]]) -> tuple[_Track, list]:
         tr = _Track()
@@ -332,7 +347,8 @@ class RhythmGenerator(Generator):
         t = np.arange(n) / fps  # (T,)
         rests = self.rest_windows(speech)
         events = self.plan(speech, seed)
-        dofs = self._arm_track(events, rests, speech.duration_s)[0].sample(t)  # (T, D)
+        beats = self.beats(speech).t_s
+        dofs = self._arm_track(events, rests, speech.duration_s, beats)[0].sample(t)  # (T, D)
         head, shakes = self._head_track(events, rests)
         dofs[:, list(HEAD_DOFS)] += head.sample(t)
         for s0, s1, hz, amp in shakes:

@@ -1,13 +1,16 @@
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
+from robogest.eval.beats import stroke_peaks
 from robogest.generators import DEFAULT_GENERATOR, make_generator
 from robogest.generators import lexicon as lx
 from robogest.generators.poses import REST, dofs_to_rotations
 from robogest.generators.rhythm import RhythmConfig, RhythmGenerator
-from tests.generators.conftest import build_speech
+from tests.generators.conftest import build_speech, syllable_bursts
 
 
 def wrist_speed_cm_s(motion) -> np.ndarray:
@@ -72,12 +75,16 @@ def test_all_silence_gives_rest_only():
 
 
 def test_strokes_land_on_beats():
-    """The wrist-speed peak of each beat stroke falls on its beat (within one 50 fps frame)."""
-    beats = [1.0, 2.5, 4.0, 5.5]
+    """The wrist-speed peak of each stroke falls on its acoustic beat (within one 50 fps frame), and the
+    motion has no speed peak off the beats: preparations are centred on earlier beats or left out."""
+    beats = [1.0, 1.45, 2.5, 2.9, 4.0, 4.4, 5.5]
     sp = build_speech(7.0, beats, [])
     g = RhythmGenerator(RhythmConfig(fps=50.0, gesture_rate=3.0, head_beat_prob=0.0, sway_rad=0.0))
+    found = g.beats(sp).t_s
+    np.testing.assert_allclose(found, beats, atol=0.03)  # the detector finds each syllable's onset
     strokes = g.strokes(sp, seed=0)
-    assert [e.t_s for _, _, e in strokes] == beats
+    assert len(strokes) >= 3
+    assert set(e.t_s for _, _, e in strokes) <= set(found)
     m = g.generate(sp, seed=0)
     v = wrist_speed_cm_s(m)
     tv = (m.t_s[:-1] + m.t_s[1:]) / 2
@@ -85,12 +92,27 @@ def test_strokes_land_on_beats():
         win = (tv >= s0) & (tv <= s1)
         peak_t = tv[win][np.argmax(v[win])]
         assert abs(peak_t - e.t_s) <= 0.021, f"{e.unit} peak at {peak_t:.3f}, beat at {e.t_s:.3f}"
-        # The stroke is the fast phase: faster than anything in the preparation before it.
-        prep = (tv > s0 - 0.8) & (tv < s0)
-        assert v[win].max() > v[prep].max()
-        # Preparation is under way 0.2-0.35 s before the stroke starts (gesture onset precedes speech).
-        before = (tv > s0 - 0.35) & (tv < s0 - 0.2)
-        assert v[before].max() > 1.0
+    w = m.positions()[:, [m.skeleton.index("l_wrist"), m.skeleton.index("r_wrist")]]
+    peaks = stroke_peaks(w, m.fps)
+    peaks = peaks[peaks < 6.5]  # the final retraction to rest is not a gesture
+    assert peaks.size >= len(strokes)
+    assert np.abs(peaks[:, None] - found[None]).min(axis=1).max() <= 0.03, peaks
+
+
+def test_preparation_is_slower_than_its_stroke():
+    beats = [1.0, 1.5, 3.0, 3.5]
+    sp = build_speech(5.0, beats, [])
+    g = RhythmGenerator(RhythmConfig(fps=50.0, gesture_rate=3.0, head_beat_prob=0.0, sway_rad=0.0))
+    m = g.generate(sp, seed=2)
+    v = wrist_speed_cm_s(m)
+    tv = (m.t_s[:-1] + m.t_s[1:]) / 2
+    strokes = g.strokes(sp, seed=2)
+    with_prep = [(s0, s1, e) for s0, s1, e in strokes if any(abs(s0 - (b - (s0 - b))) < 1 for b in g.beats(sp).t_s)]
+    assert with_prep
+    for s0, s1, _ in with_prep:
+        stroke = v[(tv >= s0) & (tv <= s1)].max()
+        prep = v[(tv > s0 - 0.8) & (tv < s0 - 0.02)]
+        assert prep.size and prep.max() < stroke
 
 
 def test_keywords_pick_semantic_units(speech_with_pause):
@@ -101,8 +123,8 @@ def test_keywords_pick_semantic_units(speech_with_pause):
     assert by_word["no"] == "shake"
     assert by_word["i"] == "self_point"
     assert by_word["so"] == "palms_up_open"
-    # "you" at 1.2–1.4 s takes the beat at 1.25 s.
-    assert [e.t_s for e in events if e.source == "keyword:you"] == [1.25]
+    # "you" at 1.2–1.4 s takes the acoustic beat of its syllable at 1.25 s.
+    assert [e.t_s for e in events if e.source == "keyword:you"] == pytest.approx([1.25], abs=0.03)
 
 
 def test_statistical_interpreter_matches_target_frequencies(rng):
@@ -119,11 +141,11 @@ def test_statistical_interpreter_matches_target_frequencies(rng):
 
 def test_amplitude_follows_prominence():
     sp = build_speech(4.0, [1.0, 2.5], [])
-    sp.features.rms[:] = 0.02
-    sp.features.rms[np.abs(np.arange(sp.n_frames) / 20 - 2.5) < 0.1] = 0.5  # second beat much louder
+    loud = syllable_bursts(4.0, [2.5])  # the second syllable 20 dB louder than the first
+    sp = dataclasses.replace(sp, audio=0.1 * syllable_bursts(4.0, [1.0]) + loud)
     events = [e for e in RhythmGenerator(gesture_rate=3.0).plan(sp, seed=1) if e.source == "beat"]
-    amp = {e.t_s: e.amplitude for e in events if lx.UNITS[e.unit].channel == "arms"}
-    assert amp[2.5] > amp[1.0]
+    amp = sorted((e.t_s, e.amplitude) for e in events if lx.UNITS[e.unit].channel == "arms")
+    assert len(amp) == 2 and amp[1][1] > amp[0][1]
 
 
 def test_wrist_speed_cap(speech_with_pause):
