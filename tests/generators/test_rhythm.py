@@ -99,20 +99,33 @@ def test_strokes_land_on_beats():
     assert np.abs(peaks[:, None] - found[None]).min(axis=1).max() <= 0.03, peaks
 
 
-def test_preparation_is_slower_than_its_stroke():
-    beats = [1.0, 1.5, 3.0, 3.5]
-    sp = build_speech(5.0, beats, [])
-    g = RhythmGenerator(RhythmConfig(fps=50.0, gesture_rate=3.0, head_beat_prob=0.0, sway_rad=0.0))
-    m = g.generate(sp, seed=2)
-    v = wrist_speed_cm_s(m)
-    tv = (m.t_s[:-1] + m.t_s[1:]) / 2
-    strokes = g.strokes(sp, seed=2)
-    with_prep = [(s0, s1, e) for s0, s1, e in strokes if any(abs(s0 - (b - (s0 - b))) < 1 for b in g.beats(sp).t_s)]
-    assert with_prep
-    for s0, s1, _ in with_prep:
-        stroke = v[(tv >= s0) & (tv <= s1)].max()
-        prep = v[(tv > s0 - 0.8) & (tv < s0 - 0.02)]
-        assert prep.size and prep.max() < stroke
+def test_preparation_is_centred_on_an_earlier_beat_and_slower_than_its_stroke():
+    from robogest.generators.rhythm import GestureEvent
+
+    beats = np.array([1.0, 1.5, 3.0, 3.5])
+    g = RhythmGenerator(RhythmConfig(fps=50.0, sway_rad=0.0))
+    events = [GestureEvent(1.5, "beat_large_both", 1.5, "beat"), GestureEvent(3.5, "beat_medium_both", 1.5, "beat")]
+    track, placed = g._arm_track(events, [], 5.0, beats)
+    assert [e.t_s for _, _, e in placed] == [1.5, 3.5]
+    t = np.arange(0, 5.0, 0.005)
+    w = g_positions(track.sample(t))
+    v = np.linalg.norm(np.diff(w, axis=0), axis=-1).max(axis=1) / 0.005  # (T-1,) m/s
+    tv = t[:-1] + 0.0025
+    # The first stroke leaves rest: no earlier beat leaves room for a slow enough preparation, so it
+    # starts straight from rest; the second one's preparation is centred on the beat at 3.0 s.
+    for prep_beat, (s0, s1, _) in zip((3.0,), placed[1:], strict=True):
+        prep = (tv > 2 * prep_beat - s0) & (tv < s0)
+        stroke = (tv >= s0) & (tv <= s1)
+        assert abs(tv[prep][np.argmax(v[prep])] - prep_beat) < 0.03  # the preparation peaks on its beat
+        assert v[prep].max() < v[stroke].max()  # and slower than the stroke
+
+
+def g_positions(dofs: np.ndarray) -> np.ndarray:
+    """Wrist positions ``(T, 2, 3)`` m of a DOF track."""
+    from robogest.motion.skeleton import CANONICAL
+
+    p = CANONICAL.forward_kinematics(dofs_to_rotations(dofs), np.zeros((len(dofs), 3)))
+    return p[:, [CANONICAL.index("l_wrist"), CANONICAL.index("r_wrist")]]
 
 
 def test_keywords_pick_semantic_units(speech_with_pause):
