@@ -16,10 +16,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from robogest.errors import InputError
 from robogest.generators import lexicon as lx
 from robogest.generators.acoustic import AcousticBeats, acoustic_beats
 from robogest.generators.base import Generator, register_generator
 from robogest.generators.poses import DOF, HEAD_DOFS, N_DOF, READY, REST, dofs_to_rotations
+from robogest.generators.tags import align_words, parse_tags, sentences
 from robogest.motion.human_motion import HumanMotion
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
 from robogest.speech.types import Speech
@@ -72,6 +74,11 @@ class RhythmConfig:
         fastest phase (and leaving rest after a pause is unhurried).
     hold_scale : float
         Multiplies every unit's post-stroke hold.
+    amount : float
+        Designer control in [0, 2]: scales how often beats get a gesture (x amount) and gesture size
+        (x (0.5 + 0.5 amount)); 0 gestures not at all. ``--style calm|neutral|lively`` = 0.5 / 1 / 1.5.
+    gestures : str
+        ``"auto"``, or ``"none"`` for idle breathing and the rest behaviour only.
     """
 
     fps: float | None = None
@@ -89,6 +96,14 @@ class RhythmConfig:
     stroke_scale: float = 1.0
     prep_speed_ratio: float = 0.7
     hold_scale: float = 0.0
+    amount: float = 1.0
+    gestures: str = "auto"
+
+
+#: The same unit is not used twice in a row within this many seconds.
+NO_REPEAT_S = 10.0
+#: Semantic units on one channel keep at least this far apart (seconds).
+SEMANTIC_SPACING_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -98,7 +113,7 @@ class GestureEvent:
     t_s: float
     unit: str
     amplitude: float
-    source: str  # "keyword:<word>" or "beat"
+    source: str  # "tag:<word>", "keyword:<trigger>" or "beat"
 
 
 @dataclass
@@ -145,9 +160,17 @@ class RhythmGenerator(Generator):
 
     name = "rhythm"
 
-    def __init__(self, config: RhythmConfig | None = None, **overrides: float) -> None:
+    def __init__(
+        self, config: RhythmConfig | None = None, repertoire: lx.Repertoire | None = None, **overrides: float | str
+    ) -> None:
         base = config or RhythmConfig()
         self.config = RhythmConfig(**{**base.__dict__, **overrides}) if overrides else base
+        c = self.config
+        if not 0.0 <= c.amount <= 2.0:
+            raise InputError(f"gesture amount must be within [0, 2], got {c.amount}")
+        if c.gestures not in ("auto", "none"):
+            raise InputError(f"gestures must be 'auto' or 'none', got {c.gestures!r}")
+        self.repertoire = repertoire or lx.default_repertoire()
         self._fk_cache: dict[bytes, float] = {}
 
     # --- planning -------------------------------------------------------------------------
@@ -171,47 +194,123 @@ class RhythmGenerator(Generator):
     def plan(self, speech: Speech, seed: int = 0) -> list[GestureEvent]:
         """Choose arm and head events (time, unit, amplitude) on acoustic beats; deterministic for a seed.
 
-        Decisions are drawn beat by beat in time order, so a prefix of the beats (a partial utterance, as
-        when streaming) gets the same choices it gets in the whole utterance.
+        Order of precedence: inline tags (``^gesture(name)`` in :attr:`Speech.text`), then semantic units
+        by priority within each sentence (trigger words; ``"?"`` = the last word of a question), then beat
+        units from the statistical interpreter on the remaining beats. A unit is not repeated back to back
+        within :data:`NO_REPEAT_S`. Beat decisions are drawn beat by beat in time order, so a prefix of
+        the beats (a partial utterance, as when streaming) gets the choices it gets in the whole one.
         """
         c = self.config
+        if c.gestures == "none" or c.amount <= 0:
+            return []
+        rep = self.repertoire
         rng = np.random.default_rng(seed)
         ab = self.beats(speech)
         beats, prom = ab.t_s, ab.prominence
+        amp = c.amplitude * (0.5 + 0.5 * c.amount)
+        words = speech.words
         events: list[GestureEvent] = []
-        taken: set[int] = set()
-        # Keyword units take the acoustic beat in their word (none: no semantic stroke, never off the beat).
-        words = _words_lower(speech)
-        for i, w in enumerate(speech.words):
-            key = words[i]
-            pair = f"{key} {words[i + 1]}" if i + 1 < len(words) else ""
-            unit = lx.KEYWORDS.get(pair) or lx.KEYWORDS.get(key)
-            if unit is None or not len(beats):
-                continue
+        taken: set[tuple[int, str]] = set()  # (beat, channel): arms and head may share a beat
+
+        def beat_in(k: int, unit: str) -> int | None:
+            w, ch = words[k], rep.units[unit].channel
             near = np.where((beats >= w.start_s - 0.1) & (beats <= w.end_s))[0]
-            near = [int(k) for k in near if int(k) not in taken]
-            if not near:
+            near = [int(i) for i in near if (int(i), ch) not in taken]
+            return near[0] if near else None
+
+        def clashes(t: float, unit: str) -> bool:
+            ch = rep.units[unit].channel
+            for e in events:
+                if rep.units[e.unit].channel != ch:
+                    continue
+                if abs(e.t_s - t) < SEMANTIC_SPACING_S or (e.unit == unit and abs(e.t_s - t) < NO_REPEAT_S):
+                    return True
+            return False
+
+        spoken = [w.text for w in words]
+        index = align_words(speech.text, spoken) if speech.text else []
+        # 1. Tags pin a unit to the next word.
+        for tag in parse_tags(speech.text) if speech.text else []:
+            if tag.name not in rep.units:
+                known = ", ".join(sorted(rep.units))
+                raise InputError(f"gesture tag ^gesture({tag.name}): unknown unit; known units: {known}")
+            k = index[tag.word_index] if tag.word_index < len(index) else None
+            if k is None:
                 continue
-            bi = near[0]
-            taken.add(bi)
-            p = float(prom[bi])
-            events.append(GestureEvent(float(beats[bi]), unit, c.amplitude * (0.6 + 0.4 * p), f"keyword:{key}"))
-        # Ordinary beats: the statistical interpreter picks arm units; some beats get head beats.
-        counts = np.zeros(len(lx.ARM_LEXEMES))
-        prev: int | None = None
+            bi = beat_in(k, tag.name)
+            t = float(beats[bi]) if bi is not None else words[k].start_s
+            p = float(prom[bi]) if bi is not None else 0.6
+            if bi is not None:
+                taken.add((bi, rep.units[tag.name].channel))
+            events.append(GestureEvent(t, tag.name, amp * (0.6 + 0.4 * p), f"tag:{words[k].text}"))
+        # 2. Semantic units by priority within each sentence, never off an acoustic beat.
+        keys = rep.keywords()
+        for first, last in self._sentence_spans(speech, index):
+            cands: list[tuple[int, int, str, str]] = []  # (-priority, word, unit, trigger)
+            for k in range(first, last + 1):
+                key = spoken[k]
+                pair = f"{key} {spoken[k + 1]}" if k + 1 <= last else ""
+                for trig in (pair, key):
+                    for unit in keys.get(trig, []) if trig else []:
+                        cands.append((-rep.units[unit].priority, k, unit, trig))
+            if self._is_question(speech, index, last):
+                cands += [(-rep.units[u].priority, last, u, "?") for u in keys.get("?", [])]
+            for _, k, unit, trig in sorted(cands):
+                bi = beat_in(k, unit)
+                if bi is None or clashes(float(beats[bi]), unit):
+                    continue
+                taken.add((bi, rep.units[unit].channel))
+                p = float(prom[bi])
+                events.append(GestureEvent(float(beats[bi]), unit, amp * (0.6 + 0.4 * p), f"keyword:{trig}"))
+        semantic_arms = np.array(sorted(e.t_s for e in events if rep.units[e.unit].channel == "arms"))
+        # 3. Ordinary beats: the statistical interpreter picks beat units; some beats get head beats.
+        names = rep.beat_units
+        counts = np.zeros(len(names))
+        prev: tuple[float, str] | None = None
         for bi, (t, p) in enumerate(zip(beats, prom, strict=True)):
             r_arm, r_head = rng.random(), rng.random()  # always two draws per beat: prefix-stable
-            if bi in taken:
-                continue
-            if r_arm < c.gesture_rate * (0.35 + 0.65 * p):
-                k = lx.next_lexeme(prev, counts, float(p), rng)
+            near_semantic = semantic_arms.size and np.any((semantic_arms - t < 0.8) & (t - semantic_arms < 0.5))
+            if (
+                names
+                and (bi, "arms") not in taken
+                and not near_semantic
+                and r_arm < c.amount * c.gesture_rate * (0.35 + 0.65 * p)
+            ):
+                avoid = frozenset([prev[1]]) if prev is not None and t - prev[0] < NO_REPEAT_S else frozenset()
+                k = rep.next_beat_unit(counts, float(p), rng, avoid)
                 counts[k] += 1
-                prev = k
-                events.append(GestureEvent(float(t), lx.ARM_LEXEMES[k], c.amplitude * (0.45 + 0.55 * p), "beat"))
-            if p > 0.5 and r_head < c.head_beat_prob * p:
-                events.append(GestureEvent(float(t), "head_beat", c.amplitude * p, "beat"))
+                prev = (float(t), names[k])
+                events.append(GestureEvent(float(t), names[k], amp * (0.45 + 0.55 * p), "beat"))
+            if (bi, "head") not in taken and p > 0.5 and r_head < c.head_beat_prob * p and "head_beat" in rep.units:
+                events.append(GestureEvent(float(t), "head_beat", amp * p, "beat"))
         events.sort(key=lambda e: (e.t_s, e.source == "beat"))
         return events
+
+    @staticmethod
+    def _sentence_spans(speech: Speech, index: list[int | None]) -> list[tuple[int, int]]:
+        """Sentences as spoken-word index ranges: from the text's punctuation when it lines up with the
+        words, else split at pauses of 0.3 s or more between words."""
+        n = len(speech.words)
+        spans: list[tuple[int, int]] = []
+        if speech.text and index:
+            for first, last, _ in sentences(speech.text):
+                ks = [k for k in index[first : last + 1] if k is not None]
+                if ks:
+                    spans.append((min(ks), max(ks)))
+            if spans:
+                return spans
+        start = 0
+        for k in range(1, n + 1):
+            if k == n or speech.words[k].start_s - speech.words[k - 1].end_s >= 0.3:
+                spans.append((start, k - 1))
+                start = k
+        return spans
+
+    @staticmethod
+    def _is_question(speech: Speech, index: list[int | None], last: int) -> bool:
+        if not speech.text or not index:
+            return False
+        return any(end == "?" and index[lw] == last for _, lw, end in sentences(speech.text) if lw < len(index))
 
     # --- synthesis ------------------------------------------------------------------------
     def _min_time_s(self, a: np.ndarray, b: np.ndarray) -> float:
@@ -264,8 +363,9 @@ class RhythmGenerator(Generator):
         placed: list[tuple[float, float, GestureEvent]] = []
         tr = _Track()
         tr.add(0.0, REST)
-        arm = [e for e in events if lx.UNITS[e.unit].channel == "arms"]
-        items: list[tuple[float, str, object]] = [(e.t_s - lx.UNITS[e.unit].stroke_s / 2, "event", e) for e in arm]
+        arm = [e for e in events if self.repertoire.units[e.unit].channel == "arms"]
+        units = self.repertoire.units
+        items: list[tuple[float, str, object]] = [(e.t_s - units[e.unit].stroke_s / 2, "event", e) for e in arm]
         items += [(r0, "rest", (r0, r1)) for r0, r1 in rests]
         items.sort(key=lambda x: (x[0], x[1] != "rest"))
         for _, kind, obj in items:
@@ -277,7 +377,7 @@ class RhythmGenerator(Generator):
                 tr.add(r1, REST)
                 continue
             e: GestureEvent = obj  # type: ignore[assignment]
-            u = lx.UNITS[e.unit]
+            u = self.repertoire.units[e.unit]
             prep_pose = READY + e.amplitude * u.prep
             stroke_pose = READY + e.amplitude * u.stroke
             stroke_s = max(c.stroke_scale * u.stroke_s, self._min_time_s(prep_pose, stroke_pose))
@@ -327,7 +427,7 @@ class RhythmGenerator(Generator):
         shakes: list[tuple[float, float, float, float]] = []
         busy_until = 0.0
         for e in events:
-            u = lx.UNITS[e.unit]
+            u = self.repertoire.units[e.unit]
             if u.channel != "head":
                 continue
             s0, s1 = e.t_s - u.stroke_s / 2, e.t_s + u.stroke_s / 2

@@ -1,13 +1,13 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 import pytest
 
 from robogest.eval.beats import stroke_peaks
 from robogest.generators import DEFAULT_GENERATOR, make_generator
-from robogest.generators import lexicon as lx
 from robogest.generators.poses import REST, dofs_to_rotations
 from robogest.generators.rhythm import RhythmConfig, RhythmGenerator
 from tests.generators.conftest import build_speech, syllable_bursts
@@ -130,26 +130,57 @@ def g_positions(dofs: np.ndarray) -> np.ndarray:
 
 def test_keywords_pick_semantic_units(speech_with_pause):
     events = RhythmGenerator().plan(speech_with_pause, seed=0)
-    by_word = {e.source.split(":")[1]: e.unit for e in events if e.source.startswith("keyword:")}
-    assert by_word["you"] == "point_forward"
-    assert by_word["big"] == "spread_both"
-    assert by_word["no"] == "shake"
-    assert by_word["i"] == "self_point"
-    assert by_word["so"] == "palms_up_open"
+    picked = {(e.source.split(":")[1], e.unit) for e in events if e.source.startswith("keyword:")}
+    assert ("you", "point_forward") in picked
+    assert ("big", "spread_both") in picked
+    assert {("no", "negation_sweep"), ("no", "shake")} <= picked  # arms and head both say no
+    assert ("this", "frame_both") not in picked  # 0.6 s after "you": lower priority, too close
+    assert not any(u == "self_point" for _, u in picked)  # a plain "I" is no reason to point at oneself
     # "you" at 1.2–1.4 s takes the acoustic beat of its syllable at 1.25 s.
     assert [e.t_s for e in events if e.source == "keyword:you"] == pytest.approx([1.25], abs=0.03)
 
 
+def test_semantic_units_by_priority_not_first_come():
+    """'this' (frame, priority 3) comes first, 'everything' (spread, priority 4) 0.5 s later: the spread wins."""
+    beats = [0.5, 1.0, 1.5]
+    words = [("this", 0.45, 0.7), ("is", 0.75, 0.9), ("everything", 0.95, 1.4)]
+    sp = build_speech(2.5, beats, [], words)
+    sem = [e for e in RhythmGenerator().plan(sp, seed=0) if e.source.startswith("keyword:")]
+    assert [e.unit for e in sem] == ["spread_both"]
+
+
+def test_no_unit_twice_in_a_row_within_10_s(rng):
+    beats = list(np.round(np.arange(0.5, 30.0, 0.45), 2))
+    sp = build_speech(30.5, beats, [])
+    for seed in range(3):
+        arms = [e for e in RhythmGenerator(gesture_rate=3.0).plan(sp, seed=seed) if e.source == "beat"]
+        arms = [e for e in arms if RhythmGenerator().repertoire.units[e.unit].channel == "arms"]
+        assert len(arms) > 30
+        for a, b in itertools.pairwise(arms):
+            assert a.unit != b.unit, (a, b)
+
+
+def test_repertoire_has_the_listed_units():
+    units = RhythmGenerator().repertoire.units
+    assert len(units) >= 25
+    listed = ["palms_up_open", "frame_both", "spread_both", "size_small", "count_one", "count_two", "list_next"]
+    listed += ["negation_sweep", "self_point", "point_forward", "point_away", "nod", "head_tilt", "shrug"]
+    assert set(listed) <= set(units)
+    beats = [u for u in units.values() if u.kind == "beat" and u.channel == "arms"]
+    assert {u.size for u in beats} == {"small", "medium", "large"} and {u.hand for u in beats} >= {"left", "right"}
+
+
 def test_statistical_interpreter_matches_target_frequencies(rng):
-    counts = np.zeros(len(lx.ARM_LEXEMES))
-    prev = None
+    rep = RhythmGenerator().repertoire
+    names = rep.beat_units
+    target = np.array([rep.units[n].frequency for n in names])
+    target /= target.sum()
+    counts = np.zeros(len(names))
     for _ in range(3000):
-        k = lx.next_lexeme(prev, counts, 0.6, rng)
-        counts[k] += 1
-        prev = k
+        counts[rep.next_beat_unit(counts, 0.6, rng)] += 1
     freq = counts / counts.sum()
-    assert (freq > 0.02).all()  # every lexeme is used
-    assert np.abs(freq - lx.LEXEME_FREQ).max() < 0.12
+    assert (freq > 0.01).all()  # every unit is used
+    assert np.abs(freq - target).max() < 0.12
 
 
 def test_amplitude_follows_prominence():
@@ -157,7 +188,7 @@ def test_amplitude_follows_prominence():
     loud = syllable_bursts(4.0, [2.5])  # the second syllable 20 dB louder than the first
     sp = dataclasses.replace(sp, audio=0.1 * syllable_bursts(4.0, [1.0]) + loud)
     events = [e for e in RhythmGenerator(gesture_rate=3.0).plan(sp, seed=1) if e.source == "beat"]
-    amp = sorted((e.t_s, e.amplitude) for e in events if lx.UNITS[e.unit].channel == "arms")
+    amp = sorted((e.t_s, e.amplitude) for e in events if RhythmGenerator().repertoire.units[e.unit].channel == "arms")
     assert len(amp) == 2 and amp[1][1] > amp[0][1]
 
 
