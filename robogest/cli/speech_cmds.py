@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from robogest.cli.common import add_speech_args, speech_from_args
+from robogest.cli.common import add_gesture_args, add_speech_args, generator_options, speech_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,6 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--out", required=True, metavar="FILE.bvh", help="motion file to write")
     g.add_argument("--generator", default="rhythm", help="gesture generator (default: %(default)s)")
     g.add_argument("--seed", type=int, default=0, help="random seed; same input + seed = same motion")
+    add_gesture_args(g)
     g.add_argument("--plot", metavar="FILE.png", help="also plot wrist trajectories with beats and silent spans")
     g.set_defaults(func=run_generate)
 
@@ -60,7 +61,7 @@ def run_generate(args: argparse.Namespace) -> int:
     from robogest.motion import save_bvh
 
     speech = speech_from_args(args)
-    motion = make_generator(args.generator).generate(speech, seed=args.seed)
+    motion = make_generator(args.generator, **generator_options(args)).generate(speech, seed=args.seed)
     save_bvh(motion, Path(args.out))
     print(f"{motion.n_frames} frames at {motion.fps:g} fps ({motion.duration_s:.2f} s) written to {args.out}")
     if args.plot:

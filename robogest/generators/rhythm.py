@@ -171,7 +171,7 @@ class RhythmGenerator(Generator):
         if c.gestures not in ("auto", "none"):
             raise InputError(f"gestures must be 'auto' or 'none', got {c.gestures!r}")
         self.repertoire = repertoire or lx.default_repertoire()
-        self._fk_cache: dict[bytes, float] = {}
+        self._fk_cache: dict[bytes, tuple[float, float]] = {}
 
     # --- planning -------------------------------------------------------------------------
     def rest_windows(self, speech: Speech) -> list[tuple[float, float]]:
@@ -313,33 +313,52 @@ class RhythmGenerator(Generator):
         return any(end == "?" and index[lw] == last for _, lw, end in sentences(speech.text) if lw < len(index))
 
     # --- synthesis ------------------------------------------------------------------------
-    def _min_time_s(self, a: np.ndarray, b: np.ndarray) -> float:
-        """Shortest minimum-jerk move from pose ``a`` to ``b`` whose wrist speed stays under the cap.
+    def _path(self, a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+        """Wrist path of a minimum-jerk move from pose ``a`` to ``b``: the steepest stretch (wrist metres per
+        unit of blend) and the fraction of the move's duration at which the faster wrist peaks.
 
-        Poses blend linearly in angle space, so the wrists move on curves: the path's steepest stretch
-        (wrist metres per unit of blend, sampled at 16 points) times the quintic's peak rate 1.875 / T
-        gives the peak speed.
+        Poses blend linearly in angle space, so the wrists move on curves whose speed peak is not always at
+        the middle of the move; placing a stroke by this fraction puts its real speed peak on the beat.
         """
         key = a.tobytes() + b.tobytes()
         if key not in self._fk_cache:
-            s = np.linspace(0.0, 1.0, 17)[:, None]  # (S, 1) blend
+            s = np.linspace(0.0, 1.0, 33)[:, None]  # (S, 1) blend
             rot = dofs_to_rotations(a + (b - a) * s)  # (S, J, 4)
             p = CANONICAL.forward_kinematics(rot, np.zeros((len(s), 3)))  # (S, J, 3)
             w = p[:, [CANONICAL.index("l_wrist"), CANONICAL.index("r_wrist")]]  # (S, 2, 3)
-            self._fk_cache[key] = float(np.linalg.norm(np.diff(w, axis=0), axis=-1).max() * (len(s) - 1))
-        return 1.875 * self._fk_cache[key] / self.config.max_wrist_speed_m_s
+            rate = np.linalg.norm(np.diff(w, axis=0), axis=-1) * (len(s) - 1)  # (S-1, 2) m per unit blend
+            mid = 0.5 * (s[1:, 0] + s[:-1, 0])
+            u = np.linspace(0.0, 1.0, 201)
+            su = u**3 * (10 - 15 * u + 6 * u**2)
+            dsu = 30 * u**2 * (1 - u) ** 2
+            k = int(np.argmax(rate.max(axis=0)))  # the wrist that moves most
+            speed = np.interp(su, mid, rate[:, k]) * dsu
+            frac = float(u[np.argmax(speed)]) if speed.max() > 1e-9 else 0.5
+            self._fk_cache[key] = (float(rate.max()), frac)
+        return self._fk_cache[key]
 
-    def _prep_beat(self, beats_s: np.ndarray, free_s: float, s0: float, need_s: float) -> float | None:
-        """A beat ``b`` before ``s0`` on which a preparation ending at ``s0`` can be centred: it lasts
-        ``2 (s0 - b)``, at least ``need_s`` and at most ``2 prep_s``, and starts after ``free_s``. Of those,
-        the one nearest the middle of ``[free_s, s0]``: the preparation fills the gap rather than leaving
-        the arms parked."""
+    def _min_time_s(self, a: np.ndarray, b: np.ndarray) -> float:
+        """Shortest minimum-jerk move from pose ``a`` to ``b`` whose wrist speed stays under the cap (the
+        path's steepest stretch times the quintic's peak rate 1.875 / T)."""
+        return 1.875 * self._path(a, b)[0] / self.config.max_wrist_speed_m_s
+
+    def _prep_beat(
+        self, beats_s: np.ndarray, free_s: float, s0: float, need_s: float, frac: float
+    ) -> tuple[float, float] | None:
+        """A beat ``b`` before ``s0`` on which a preparation ending at ``s0`` can peak (its speed peak is at
+        ``frac`` of its duration ``d = (s0 - b) / (1 - frac)``): at least ``need_s`` long, starting no earlier
+        than ``free_s`` and within ``prep_s``. Of those, the one that best fills ``[free_s, s0]``: the
+        preparation flows out of the previous gesture rather than leaving the arms parked.
+        Returns ``(beat, start)``."""
         c = self.config
-        ok = (beats_s < s0 - need_s / 2 + 1e-9) & (beats_s >= s0 - c.prep_s) & (2 * beats_s - s0 >= free_s - 1e-9)
+        frac = min(max(frac, 0.2), 0.8)
+        d = (s0 - beats_s) / (1.0 - frac)
+        start = s0 - d
+        ok = (beats_s < s0) & (d >= need_s - 1e-9) & (s0 - beats_s <= c.prep_s) & (start >= free_s - 1e-9)
         if not ok.any():
             return None
-        cand = beats_s[ok]
-        return float(cand[np.argmin(np.abs(cand - 0.5 * (free_s + s0)))])
+        k = int(np.argmin(np.where(ok, start - free_s, np.inf)))
+        return float(beats_s[k]), float(start[k])
 
     def _relax_on_beat(self, tr: _Track, beats_s: np.ndarray, before_s: float) -> None:
         """In a long gap, settle into READY with a slow move centred on a free beat (its peak on the beat)."""
@@ -381,7 +400,8 @@ class RhythmGenerator(Generator):
             prep_pose = READY + e.amplitude * u.prep
             stroke_pose = READY + e.amplitude * u.stroke
             stroke_s = max(c.stroke_scale * u.stroke_s, self._min_time_s(prep_pose, stroke_pose))
-            s0, s1 = e.t_s - stroke_s / 2, e.t_s + stroke_s / 2
+            f_s = self._path(prep_pose, stroke_pose)[1]
+            s0, s1 = e.t_s - f_s * stroke_s, e.t_s + (1 - f_s) * stroke_s
             hold_end = s1 + c.hold_scale * u.hold_s
             nxt = [r0 for r0, _ in rests if r0 > tr.last_t]
             if s0 < tr.last_t + 1e-6:
@@ -393,16 +413,17 @@ class RhythmGenerator(Generator):
             # Preparation: a slower move into the prep pose whose speed peak lies on an earlier acoustic beat,
             # so it never adds a peak off the beat. Without such a beat the stroke starts from the held pose.
             need = max(c.min_prep_s, self._min_time_s(tr.last_v, prep_pose) / c.prep_speed_ratio)
-            prep_beat = self._prep_beat(beats_s, tr.last_t, s0, need)
-            if prep_beat is not None:
-                tr.add(2 * prep_beat - s0, tr.last_v)
+            prep = self._prep_beat(beats_s, tr.last_t, s0, need, self._path(tr.last_v, prep_pose)[1])
+            if prep is not None:
+                tr.add(prep[1], tr.last_v)
                 tr.add(s0, prep_pose)
                 tr.add(s1, stroke_pose)
             else:
-                half = max(stroke_s, self._min_time_s(tr.last_v, stroke_pose)) / 2
-                if e.t_s - half < tr.last_t + 1e-6:
+                d = max(stroke_s, self._min_time_s(tr.last_v, stroke_pose))
+                f_d = self._path(tr.last_v, stroke_pose)[1]
+                if e.t_s - f_d * d < tr.last_t + 1e-6:
                     continue  # no time for the stroke at a natural speed
-                s0, s1 = e.t_s - half, e.t_s + half
+                s0, s1 = e.t_s - f_d * d, e.t_s + (1 - f_d) * d
                 hold_end = s1 + c.hold_scale * u.hold_s
                 if nxt and hold_end + max(c.retract_s, self._min_time_s(stroke_pose, REST)) > nxt[0]:
                     continue
