@@ -13,6 +13,8 @@ offline machine has). For every clip and each of 10 seeds it measures, on the ge
 - Hellinger distance between the wrist-speed histograms (1 cm/s bins, speech frames) of the two;
 - rest: fraction of pauses of 1 s or more in which the wrists hold still (< 1 cm/s) from 0.6 s after the
   pause starts to 0.45 s before it ends;
+- ceiling_z: the z of strokes on every acoustic beat the generator sees (no seeds): what this metric
+  allows on the clip at all (short clips with dense onsets cap it well below 4);
 - on the robot (humanoid_xl430: retarget + safety layer at 50 Hz, MuJoCo wrist sites of the command
   trajectory): stroke-sync z and its ratio to the human motion's z of the same seed.
 
@@ -142,7 +144,7 @@ def tts_clips() -> list[Clip]:
 
 def measure(clip: Clip, ref: dict, seeds: range, robot=None, generator_options: dict | None = None) -> dict:
     """Per-seed metrics of one clip: lists under each metric name."""
-    from robogest.eval.beats import audio_onsets, stroke_sync
+    from robogest.eval.beats import audio_onsets, chance_corrected, stroke_hit_rate, stroke_sync
     from robogest.eval.kinematics import hellinger_distance, speed_histogram
     from robogest.generators import make_generator
 
@@ -151,6 +153,10 @@ def measure(clip: Clip, ref: dict, seeds: range, robot=None, generator_options: 
     onsets = audio_onsets(sp.audio, sp.sr)
     spans = list(sp.silent_spans)
     out: dict[str, list[float]] = {k: [] for k in ("z", "speed", "acc", "hellinger", "rest", "robot_z", "robot/human")}
+    # The most any generator could score here: one stroke on every acoustic beat the generator can see.
+    beats = gen.beats(sp).t_s
+    ceiling = chance_corrected(lambda m, a: stroke_hit_rate(m, a, spans), beats, onsets, sp.duration_s)["z"]
+    out["ceiling_z"] = [ceiling]
     for seed in seeds:
         m = gen.generate(sp, seed=seed)
         w = m.positions()[:, [m.skeleton.index("l_wrist"), m.skeleton.index("r_wrist")]]
@@ -176,6 +182,7 @@ def measure(clip: Clip, ref: dict, seeds: range, robot=None, generator_options: 
 
 #: How "worst" is picked per metric.
 WORST = {
+    "ceiling_z": np.nanmin,
     "z": np.nanmin,
     "rest": np.nanmin,
     "robot_z": np.nanmin,
