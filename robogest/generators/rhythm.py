@@ -79,6 +79,10 @@ class RhythmConfig:
         (x (0.5 + 0.5 amount)); 0 gestures not at all. ``--style calm|neutral|lively`` = 0.5 / 1 / 1.5.
     gestures : str
         ``"auto"``, or ``"none"`` for idle breathing and the rest behaviour only.
+    max_joint_speed_rad_s, max_joint_accel_rad_s2 : float or None
+        Speed and acceleration limits of the body that will play the motion (the pipeline passes a robot's
+        slowest arm joint), applied to every move's largest angle change, so strokes are timed for what the
+        robot can do instead of being smeared by its safety layer. The generator knows nothing else of it.
     """
 
     fps: float | None = None
@@ -98,6 +102,8 @@ class RhythmConfig:
     hold_scale: float = 0.0
     amount: float = 1.0
     gestures: str = "auto"
+    max_joint_speed_rad_s: float | None = None
+    max_joint_accel_rad_s2: float | None = None
 
 
 #: The same unit is not used twice in a row within this many seconds.
@@ -340,7 +346,15 @@ class RhythmGenerator(Generator):
     def _min_time_s(self, a: np.ndarray, b: np.ndarray) -> float:
         """Shortest minimum-jerk move from pose ``a`` to ``b`` whose wrist speed stays under the cap (the
         path's steepest stretch times the quintic's peak rate 1.875 / T)."""
-        return 1.875 * self._path(a, b)[0] / self.config.max_wrist_speed_m_s
+        c = self.config
+        t = 1.875 * self._path(a, b)[0] / c.max_wrist_speed_m_s
+        if c.max_joint_speed_rad_s or c.max_joint_accel_rad_s2:
+            d = float(np.abs(b - a).max())  # largest angle change, rad
+            if c.max_joint_speed_rad_s:
+                t = max(t, 1.875 * d / c.max_joint_speed_rad_s)  # quintic peak velocity 1.875 d / T
+            if c.max_joint_accel_rad_s2:
+                t = max(t, float(np.sqrt(5.7735 * d / c.max_joint_accel_rad_s2)))  # peak accel 5.77 d / T²
+        return t
 
     def _prep_beat(
         self, beats_s: np.ndarray, free_s: float, s0: float, need_s: float, frac: float

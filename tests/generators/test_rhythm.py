@@ -196,3 +196,19 @@ def test_wrist_speed_cap(speech_with_pause):
     g = RhythmGenerator(fps=100.0, sway_rad=0.0, max_wrist_speed_m_s=1.2)
     v = wrist_speed_cm_s(g.generate(speech_with_pause, seed=0))
     assert 60 < v.max() <= 121  # it gestures, and no move is faster than the cap (1% for discretisation)
+
+
+def test_joint_limits_option_slows_every_move_to_what_the_body_can_do():
+    beats = [1.0, 1.45, 2.5, 2.9, 4.0, 4.4, 5.5]
+    sp = build_speech(7.0, beats, [])
+    a_max = 12.0
+    g = RhythmGenerator(fps=100.0, sway_rad=0.0, head_beat_prob=0.0, max_joint_accel_rad_s2=a_max)
+    m = g.generate(sp, seed=0)
+    free = RhythmGenerator(fps=100.0, sway_rad=0.0, head_beat_prob=0.0).generate(sp, seed=0)
+    assert g.strokes(sp, seed=0)  # it still gestures, on the beats
+
+    def peak_accel(motion) -> float:
+        q = motion.rotations[:, :, 1:]  # quaternion vector parts ~ half-angles for small rotations
+        return float(np.abs(np.diff(q, n=2, axis=0)).max() * motion.fps**2 * 2)
+
+    assert peak_accel(m) < peak_accel(free)
