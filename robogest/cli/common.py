@@ -40,6 +40,13 @@ def add_gesture_args(p: argparse.ArgumentParser) -> None:
         "to (or replaces by name) the built-in ones (also: $ROBOGEST_GESTURES). In TEXT, ^gesture(NAME) before a "
         "word pins unit NAME to it",
     )
+    p.add_argument(
+        "--semantic",
+        choices=["keywords", "embedding"],
+        default="keywords",
+        help="how semantic gestures are chosen: trigger words (default) or, with the learn extra, also by "
+        "sentence-embedding similarity to each unit's meaning",
+    )
 
 
 def generator_options(args: argparse.Namespace) -> dict:
@@ -50,15 +57,18 @@ def generator_options(args: argparse.Namespace) -> dict:
     if args.amount is not None and args.style is not None:
         raise InputError("give --amount or --style, not both")
     amount = STYLES[args.style] if args.style else args.amount
-    custom = amount is not None or args.gestures != "auto"
+    custom = amount is not None or args.gestures != "auto" or args.semantic != "keywords"
     if custom and args.generator != "rhythm":
         raise InputError(
-            f"--amount, --style and --gestures are options of the 'rhythm' generator, not {args.generator!r}"
+            f"--amount, --style, --gestures and --semantic are options of the 'rhythm' generator, "
+            f"not {args.generator!r}"
         )
     if amount is not None:
         if not 0.0 <= amount <= 2.0:
             raise InputError(f"--amount must be within [0, 2], got {amount}")
         opts["amount"] = float(amount)
+    if args.semantic != "keywords":
+        opts["semantic"] = args.semantic
     if args.gestures == "none":
         opts["gestures"] = "none"
     elif args.gestures != "auto":

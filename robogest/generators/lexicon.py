@@ -181,7 +181,9 @@ def load_file(path: Path) -> dict[str, GestureUnit]:
     except OSError as e:
         raise ConfigError(f"{path}: cannot read ({e})") from None
     except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: not valid YAML ({str(e).splitlines()[0]})") from None
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise ConfigError(f"{path}: not valid YAML{where} ({str(e).splitlines()[0]})") from None
     if not isinstance(data, dict) or not isinstance(data.get("units"), dict):
         raise ConfigError(f"{path}: key units: missing; a gesture file is a mapping 'units: {{name: {{...}}}}'")
     return {str(n): parse_unit(str(n), d, str(path)) for n, d in data["units"].items()}

@@ -79,6 +79,9 @@ class RhythmConfig:
         (x (0.5 + 0.5 amount)); 0 gestures not at all. ``--style calm|neutral|lively`` = 0.5 / 1 / 1.5.
     gestures : str
         ``"auto"``, or ``"none"`` for idle breathing and the rest behaviour only.
+    semantic : str
+        ``"keywords"`` (trigger words only) or ``"embedding"``: sentences whose words trigger no arm unit
+        get the unit whose ``meaning`` is closest in MiniLM sentence embedding (needs the learn extra).
     max_joint_speed_rad_s, max_joint_accel_rad_s2 : float or None
         Speed and acceleration limits of the body that will play the motion (the pipeline passes a robot's
         slowest arm joint), applied to every move's largest angle change, so strokes are timed for what the
@@ -104,6 +107,7 @@ class RhythmConfig:
     gestures: str = "auto"
     max_joint_speed_rad_s: float | None = None
     max_joint_accel_rad_s2: float | None = None
+    semantic: str = "keywords"
 
 
 #: The same unit is not used twice in a row within this many seconds.
@@ -119,7 +123,7 @@ class GestureEvent:
     t_s: float
     unit: str
     amplitude: float
-    source: str  # "tag:<word>", "keyword:<trigger>" or "beat"
+    source: str  # "tag:<word>", "keyword:<trigger>", "meaning:<similarity>" or "beat"
 
 
 @dataclass
@@ -176,6 +180,9 @@ class RhythmGenerator(Generator):
             raise InputError(f"gesture amount must be within [0, 2], got {c.amount}")
         if c.gestures not in ("auto", "none"):
             raise InputError(f"gestures must be 'auto' or 'none', got {c.gestures!r}")
+        if c.semantic not in ("keywords", "embedding"):
+            raise InputError(f"semantic must be 'keywords' or 'embedding', got {c.semantic!r}")
+        self._meaning = None
         self.repertoire = repertoire or lx.default_repertoire()
         self._fk_cache: dict[bytes, tuple[float, float]] = {}
 
@@ -261,13 +268,18 @@ class RhythmGenerator(Generator):
                         cands.append((-rep.units[unit].priority, k, unit, trig))
             if self._is_question(speech, index, last):
                 cands += [(-rep.units[u].priority, last, u, "?") for u in keys.get("?", [])]
+            arm_picked = False
             for _, k, unit, trig in sorted(cands):
                 bi = beat_in(k, unit)
                 if bi is None or clashes(float(beats[bi]), unit):
                     continue
                 taken.add((bi, rep.units[unit].channel))
+                arm_picked |= rep.units[unit].channel == "arms"
                 p = float(prom[bi])
                 events.append(GestureEvent(float(beats[bi]), unit, amp * (0.6 + 0.4 * p), f"keyword:{trig}"))
+            if c.semantic == "embedding" and not arm_picked:
+                self._by_meaning(spoken[first : last + 1], words[first].start_s, words[last].end_s, beats, prom,
+                                 taken, clashes, events, amp)  # fmt: skip
         semantic_arms = np.array(sorted(e.t_s for e in events if rep.units[e.unit].channel == "arms"))
         # 3. Ordinary beats: the statistical interpreter picks beat units; some beats get head beats.
         names = rep.beat_units
@@ -291,6 +303,25 @@ class RhythmGenerator(Generator):
                 events.append(GestureEvent(float(t), "head_beat", amp * p, "beat"))
         events.sort(key=lambda e: (e.t_s, e.source == "beat"))
         return events
+
+    def _by_meaning(self, sentence, t0, t1, beats, prom, taken, clashes, events, amp) -> None:
+        """Sentence-embedding choice (learn extra): the unit whose meaning is closest, on the sentence's most
+        prominent free beat."""
+        if self._meaning is None:
+            from robogest.generators.meaning import MeaningChooser
+
+            self._meaning = MeaningChooser(self.repertoire)
+        pick = self._meaning.choose(list(sentence))
+        if pick is None:
+            return
+        unit = pick[0]
+        idx = [int(i) for i in np.where((beats >= t0 - 0.05) & (beats <= t1))[0] if (int(i), "arms") not in taken]
+        for bi in sorted(idx, key=lambda i: -prom[i]):
+            if not clashes(float(beats[bi]), unit):
+                taken.add((bi, "arms"))
+                p = float(prom[bi])
+                events.append(GestureEvent(float(beats[bi]), unit, amp * (0.6 + 0.4 * p), f"meaning:{pick[1]:.2f}"))
+                return
 
     @staticmethod
     def _sentence_spans(speech: Speech, index: list[int | None]) -> list[tuple[int, int]]:
