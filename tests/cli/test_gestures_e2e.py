@@ -108,3 +108,14 @@ def test_gesture_option_errors(args, match, capsys):
     assert main(["speak", "Hi there.", *args]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and match in err
+
+
+def test_eval_reports_stroke_sync_on_the_robots_wrist_sites(tmp_path):
+    import json
+
+    traj = _speak(tmp_path, "talk", "So here is the thing: we build it, we test it, and we ship it. ... Right?")
+    out = tmp_path / "e.json"
+    args = ["eval", "--pred", str(tmp_path / "talk.npz"), "--audio", traj.audio_path, "--json", str(out)]
+    assert main([*args, "--shifts", "30"]) == 0
+    s = json.loads(out.read_text())["results"]["talk"]["beat_sync"]["stroke_sync"]
+    assert s["n_peaks"] > 3 and s["n_shifts"] == 30 and 0 <= s["hit"] <= 1 and s["z"] is not None

@@ -212,3 +212,15 @@ def test_joint_limits_option_slows_every_move_to_what_the_body_can_do():
         return float(np.abs(np.diff(q, n=2, axis=0)).max() * motion.fps**2 * 2)
 
     assert peak_accel(m) < peak_accel(free)
+
+
+def test_plan_of_a_partial_utterance_is_a_prefix_of_the_whole_plan():
+    """For streaming: beat decisions are drawn beat by beat, so planning the speech heard so far gives the
+    same events, up to the last beat heard, as planning the whole utterance."""
+    beats = list(np.round(np.arange(0.5, 12.0, 0.4), 2))
+    whole = build_speech(12.0, beats, [])
+    part = build_speech(6.0, [b for b in beats if b < 6.0], [])
+    g = RhythmGenerator()
+    a = [e for e in g.plan(whole, seed=5) if e.t_s < 5.8]
+    b = [e for e in g.plan(part, seed=5) if e.t_s < 5.8]
+    assert len(a) > 5 and a == b
