@@ -204,7 +204,7 @@ class RhythmGenerator(Generator):
         """Where strokes may land: :func:`acoustic.acoustic_beats` of the speech, outside silent periods."""
         return acoustic_beats(speech.audio, speech.sr, tuple(speech.silent_spans))
 
-    def plan(self, speech: Speech, seed: int = 0) -> list[GestureEvent]:
+    def plan(self, speech: Speech, seed: int = 0, acoustic: AcousticBeats | None = None) -> list[GestureEvent]:
         """Choose arm and head events (time, unit, amplitude) on acoustic beats; deterministic for a seed.
 
         Order of precedence: inline tags (``^gesture(name)`` in :attr:`Speech.text`), then semantic units
@@ -212,13 +212,14 @@ class RhythmGenerator(Generator):
         units from the statistical interpreter on the remaining beats. A unit is not repeated back to back
         within :data:`NO_REPEAT_S`. Beat decisions are drawn beat by beat in time order, so a prefix of
         the beats (a partial utterance, as when streaming) gets the choices it gets in the whole one.
+        ``acoustic`` passes :meth:`beats` already computed (each call otherwise detects them again).
         """
         c = self.config
         if c.gestures == "none" or c.amount <= 0:
             return []
         rep = self.repertoire
         rng = np.random.default_rng(seed)
-        ab = self.beats(speech)
+        ab = acoustic if acoustic is not None else self.beats(speech)
         beats, prom = ab.t_s, ab.prominence
         amp = c.amplitude * (0.5 + 0.5 * c.amount)
         words = speech.words
@@ -483,8 +484,8 @@ class RhythmGenerator(Generator):
 
     def strokes(self, speech: Speech, seed: int = 0) -> list[tuple[float, float, GestureEvent]]:
         """The arm strokes :meth:`generate` makes: ``(start_s, end_s, event)``, speed peak at ``event.t_s``."""
-        beats = self.beats(speech).t_s
-        return self._arm_track(self.plan(speech, seed), self.rest_windows(speech), speech.duration_s, beats)[1]
+        ab = self.beats(speech)
+        return self._arm_track(self.plan(speech, seed, ab), self.rest_windows(speech), speech.duration_s, ab.t_s)[1]
 
     def _head_track(self, events: list[GestureEvent], rests: list[tuple[float, float]]) -> tuple[_Track, list]:
         tr = _Track()
@@ -519,8 +520,9 @@ class RhythmGenerator(Generator):
         n = speech.n_frames if fps == speech.fps else round(speech.duration_s * fps)
         t = np.arange(n) / fps  # (T,)
         rests = self.rest_windows(speech)
-        events = self.plan(speech, seed)
-        beats = self.beats(speech).t_s
+        ab = self.beats(speech)
+        events = self.plan(speech, seed, ab)
+        beats = ab.t_s
         dofs = self._arm_track(events, rests, speech.duration_s, beats)[0].sample(t)  # (T, D)
         head, shakes = self._head_track(events, rests)
         dofs[:, list(HEAD_DOFS)] += head.sample(t)
