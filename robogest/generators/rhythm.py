@@ -1,12 +1,16 @@
 """The default generator: rhythm-aware, rule-based, no trained weights.
 
-Strokes land on speech beats (their wrist-speed peak at the beat time), preparation starts early
-(gesture onsets precede speech by ~0.2–0.35 s, Gesticulator §2.1.2), keywords pick semantic units,
-a statistical interpreter (Rhythmic Gesticulator §7.4.6) picks the rest, and every long silent period
-is spent exactly at the rest pose (the silent-period hint, Rhythmic Gesticulator §6.4.1).
+Strokes land on acoustic beats (:mod:`acoustic`: the generator's own detector of loudness rises, never
+pseudo-beats): each stroke's wrist-speed peak is at its beat. Preparations are slower and peak on an
+earlier beat, so every move made while speaking peaks on a beat; where speech goes on without a chosen
+beat the pose is held. Inline tags and trigger words (by priority within a sentence) pick semantic units
+from the data-driven repertoire (:mod:`lexicon`), a statistical interpreter (Rhythmic Gesticulator §7.4.6)
+picks beat units, and every long silent period is spent exactly at the rest pose (the silent-period hint,
+Rhythmic Gesticulator §6.4.1).
 
 The motion is built as keyframe timelines in the angle space of :mod:`poses` and interpolated with
-minimum-jerk (quintic) segments, whose speed peak is the segment's midpoint.
+minimum-jerk (quintic) segments; a segment is placed by where its wrist speed really peaks (the wrists move
+on curves, so not always at the segment's middle).
 """
 
 from __future__ import annotations
@@ -83,9 +87,11 @@ class RhythmConfig:
         ``"keywords"`` (trigger words only) or ``"embedding"``: sentences whose words trigger no arm unit
         get the unit whose ``meaning`` is closest in MiniLM sentence embedding (needs the learn extra).
     max_joint_speed_rad_s, max_joint_accel_rad_s2 : float or None
-        Speed and acceleration limits of the body that will play the motion (the pipeline passes a robot's
-        slowest arm joint), applied to every move's largest angle change, so strokes are timed for what the
-        robot can do instead of being smeared by its safety layer. The generator knows nothing else of it.
+        Speed and acceleration limits of the body that will play the motion (e.g. a robot's slowest arm
+        joint), applied to every move's largest angle change, so strokes are timed for what the robot can do
+        instead of being smeared by its safety layer. Not set by the pipeline: on the BEAT2 calibration half
+        the humanoid's 15 rad/s² brought its z closer to the human motion's (0.89 vs 0.84 of it) but lower
+        (2.4 vs 2.9), as fewer gestures fit.
     """
 
     fps: float | None = None
