@@ -28,7 +28,7 @@ def _speech_speed(traj: Trajectory) -> float:
 def test_tag_pins_its_unit_to_the_next_word_within_20_ms(tmp_path):
     speech = load_speech_input(text=TAGGED)
     assert "^gesture" in speech.text and all("gesture" not in w.text for w in speech.words)  # not spoken
-    g = RhythmGenerator(fps=200.0, sway_rad=0.0)
+    g = RhythmGenerator(fps=200.0, sway_rad=0.0, drift_m_s=0.0)
     (tag,) = [e for e in g.plan(speech, seed=0) if e.source.startswith("tag:")]
     word = next(w for w in speech.words if w.text == "behind")
     assert tag.unit == "point_away" and tag.source == "tag:behind"

@@ -79,7 +79,7 @@ def test_strokes_land_on_beats():
     motion has no speed peak off the beats: preparations are centred on earlier beats or left out."""
     beats = [1.0, 1.45, 2.5, 2.9, 4.0, 4.4, 5.5]
     sp = build_speech(7.0, beats, [])
-    g = RhythmGenerator(RhythmConfig(fps=50.0, gesture_rate=3.0, head_beat_prob=0.0, sway_rad=0.0))
+    g = RhythmGenerator(RhythmConfig(fps=50.0, gesture_rate=3.0, head_beat_prob=0.0, sway_rad=0.0, drift_m_s=0.0))
     found = g.beats(sp).t_s
     np.testing.assert_allclose(found, beats, atol=0.03)  # the detector finds each syllable's onset
     strokes = g.strokes(sp, seed=0)
@@ -103,7 +103,7 @@ def test_preparation_is_centred_on_an_earlier_beat_and_slower_than_its_stroke():
     from robogest.generators.rhythm import GestureEvent
 
     beats = np.array([1.0, 1.5, 3.0, 3.5])
-    g = RhythmGenerator(RhythmConfig(fps=50.0, sway_rad=0.0))
+    g = RhythmGenerator(RhythmConfig(fps=50.0, sway_rad=0.0, drift_m_s=0.0))
     events = [GestureEvent(1.5, "beat_large_both", 1.5, "beat"), GestureEvent(3.5, "beat_medium_both", 1.5, "beat")]
     track, placed = g._arm_track(events, [], 5.0, beats)
     assert [e.t_s for _, _, e in placed] == [1.5, 3.5]
@@ -193,7 +193,7 @@ def test_amplitude_follows_prominence():
 
 
 def test_wrist_speed_cap(speech_with_pause):
-    g = RhythmGenerator(fps=100.0, sway_rad=0.0, max_wrist_speed_m_s=1.2)
+    g = RhythmGenerator(fps=100.0, sway_rad=0.0, drift_m_s=0.0, max_wrist_speed_m_s=1.2)
     v = wrist_speed_cm_s(g.generate(speech_with_pause, seed=0))
     assert 60 < v.max() <= 121  # it gestures, and no move is faster than the cap (1% for discretisation)
 
@@ -202,9 +202,9 @@ def test_joint_limits_option_slows_every_move_to_what_the_body_can_do():
     beats = [1.0, 1.45, 2.5, 2.9, 4.0, 4.4, 5.5]
     sp = build_speech(7.0, beats, [])
     a_max = 12.0
-    g = RhythmGenerator(fps=100.0, sway_rad=0.0, head_beat_prob=0.0, max_joint_accel_rad_s2=a_max)
+    g = RhythmGenerator(fps=100.0, sway_rad=0.0, drift_m_s=0.0, head_beat_prob=0.0, max_joint_accel_rad_s2=a_max)
     m = g.generate(sp, seed=0)
-    free = RhythmGenerator(fps=100.0, sway_rad=0.0, head_beat_prob=0.0).generate(sp, seed=0)
+    free = RhythmGenerator(fps=100.0, sway_rad=0.0, drift_m_s=0.0, head_beat_prob=0.0).generate(sp, seed=0)
     assert g.strokes(sp, seed=0)  # it still gestures, on the beats
 
     def peak_accel(motion) -> float:
