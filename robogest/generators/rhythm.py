@@ -85,9 +85,11 @@ class RhythmConfig:
         ``"auto"``, or ``"none"`` for idle breathing and the rest behaviour only.
     drift_m_s, drift_hz : float
         Drift of each wrist while speaking, between and under the gestures: a small circle at this speed
-        (m/s, times ``amount``; none with ``gestures="none"``) and frequency. Calibrated: 0.3 m/s at 0.8 Hz
-        brought wrist speed from 0.43x to 0.70x the speaker's and Hellinger from 0.63 to 0.44 at a cost of
-        stroke-sync z 3.5 -> 3.2 on the calibration half.
+        (m/s, times ``amount``; none with ``gestures="none"``) and frequency (radius about 10 cm). On the
+        calibration half, 0.3 m/s brought wrist speed from 0.42x to 0.7x the speaker's and the Hellinger
+        distance from 0.64 to about 0.43, at a cost in stroke-sync z (3.7 -> about 3.1, 10 seeds): the
+        drift shifts the strokes' speed peaks a little. 0.3 Hz kept more z (3.3) with 16 cm circles, 0.8 Hz
+        less (2.8).
     semantic : str
         ``"keywords"`` (trigger words only) or ``"embedding"``: sentences whose words trigger no arm unit
         get the unit whose ``meaning`` is closest in MiniLM sentence embedding (needs the learn extra).
@@ -120,7 +122,7 @@ class RhythmConfig:
     max_joint_accel_rad_s2: float | None = None
     semantic: str = "keywords"
     drift_m_s: float = 0.3
-    drift_hz: float = 0.8
+    drift_hz: float = 0.5
 
 
 #: The same unit is not used twice in a row within this many seconds.
