@@ -36,9 +36,8 @@ class RhythmConfig:
     """Timing and style of the default generator (seconds, radians).
 
     The defaults were calibrated on the first half (0-32 s) of the BEAT2 sample (speaker "scott") only;
-    ``benchmarks/bench_generalize.py`` reports them on held-out speech. At 30 fps, speech frames, wrist
-    speed p50/p90/p99 10/149/225 cm/s vs the speaker's 56/132/223: strokes are as fast as his, but
-    between gestures the arms hold still where he keeps moving (mean speed about 0.56x his).
+    ``benchmarks/bench_generalize.py`` reports them on held-out speech (README, Evaluation): about 0.7x
+    the speaker's mean wrist speed and acceleration during speech on the calibration half.
 
     Attributes
     ----------
