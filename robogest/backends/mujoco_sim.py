@@ -87,6 +87,42 @@ def load_sim_model(robot: RobotConfig) -> SimModel:
     return SimModel(model, np.array(qpos_idx), np.array(dof_idx), np.array(act_idx), robot_geoms)
 
 
+def wrist_site_positions(robot: RobotConfig, q_rad: np.ndarray) -> np.ndarray:
+    """Positions of the robot's wrist sites (every site named ``*wrist_site``) along joint angles.
+
+    Parameters
+    ----------
+    robot : RobotConfig
+    q_rad : ndarray [shape=(T, J)], radians
+        Joint angles in the robot's YAML order.
+
+    Returns
+    -------
+    ndarray [shape=(T, W, 3)], metres
+        World positions by forward kinematics (no dynamics).
+
+    Raises
+    ------
+    ConfigError
+        The model has no wrist site.
+    """
+    sim = load_sim_model(robot)
+    m = sim.model
+    names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SITE, i) or "" for i in range(m.nsite)]
+    ids = [i for i, n in enumerate(names) if n.endswith("wrist_site")]
+    if not ids:
+        raise ConfigError(f"{robot.path or robot.name}: the model has no site named *wrist_site; add one per wrist")
+    data = mujoco.MjData(m)
+    _reset_to(sim, data, None)
+    q = np.asarray(q_rad, dtype=np.float64)
+    out = np.zeros((q.shape[0], len(ids), 3))
+    for k in range(q.shape[0]):
+        data.qpos[sim.qpos_idx] = q[k]
+        mujoco.mj_kinematics(m, data)
+        out[k] = data.site_xpos[ids]
+    return out
+
+
 def _reset_to(sim: SimModel, data: mujoco.MjData, q_rad: np.ndarray | None) -> None:
     """Home keyframe (if any), then ``q_rad`` on top, at rest (zero velocity), ctrl = q."""
     key = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_KEY, HOME_KEY)

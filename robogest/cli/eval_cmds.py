@@ -25,8 +25,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="objective metrics of generated gestures or robot trajectories",
         description="Compare generated motion (--pred) with ground truth (--gt) and/or speech (--audio): "
         "acceleration/jerk, wrist-speed histograms, MAJE/MAD, Fréchet feature distances, chance-corrected "
-        "beat sync (PMB, BeatAlign), silence behaviour; for trajectories limit violations, jerk and time to "
-        "rest. Folders are paired by file stem.",
+        "beat sync (PMB, BeatAlign on onset beats; stroke sync: wrist-speed peaks on audio onsets), silence "
+        "behaviour; for trajectories limit violations, jerk, time to rest and stroke sync of the robot's wrist sites."
+        " Folders are paired by file stem.",
     )
     p.add_argument("--pred", required=True, metavar="PATH", help="generated motion/trajectory file or folder")
     p.add_argument("--gt", metavar="PATH", help="ground-truth file or folder (same stems as --pred)")
@@ -112,6 +113,23 @@ def load_speech_for(audio: Path, transcript: Path | None):
 # ----------------------------------------------------------------------------------------------- core
 
 
+def _robot_wrists(traj, achieved_q_rad: np.ndarray | None) -> np.ndarray | None:
+    """Wrist-site positions ``(T, W, 3)`` m of the robot a trajectory names (its achieved motion when simulated),
+    or None when the robot is not known here: stroke sync is then left out, the other metrics still run."""
+    from robogest.backends.mujoco_sim import wrist_site_positions
+    from robogest.robot import find_robot
+
+    if not traj.robot:
+        return None
+    try:
+        robot = find_robot(traj.robot)
+    except RobogestError:
+        return None
+    order = [list(traj.joint_names).index(n) for n in robot.joint_names]
+    q = achieved_q_rad if achieved_q_rad is not None else traj.q_rad[:, order]  # robot's joint order
+    return wrist_site_positions(robot, q)
+
+
 def evaluate_files(
     pred_path: Path,
     gt_path: Path | None,
@@ -127,11 +145,14 @@ def evaluate_files(
     gt_kind, gt = load_input(gt_path) if gt_path else (None, None)
     if gt is not None and gt_kind != kind:
         raise InputError(f"{gt_path}: is a {gt_kind} but {pred_path} is a {kind}; compare like with like")
-    beats = spans = None
+    beats = spans = onsets = None
     if audio_path is not None:
+        from robogest.eval.beats import audio_onsets
+
         speech = load_speech_for(audio_path, transcript_path)
-        beats = np.asarray(speech.beats_s, dtype=np.float64)
+        beats = np.asarray(speech.beats_s, dtype=np.float64)[~np.asarray(speech.beat_is_pseudo, dtype=bool)]
         spans = [tuple(map(float, s)) for s in speech.silent_spans]
+        onsets = audio_onsets(speech.audio, speech.sr)
     res: dict
     if kind == "trajectory":
         gt_q = None
@@ -140,7 +161,7 @@ def evaluate_files(
                 raise InputError(f"{gt_path}: joints {gt.joint_names} differ from {pred_path}'s {pred.joint_names}")
             t = pred.t_s[pred.t_s <= gt.duration_s + 1e-9]
             gt_q = np.array([gt.sample(x) for x in t]).reshape(len(t), -1)  # pred's rate, gt's span
-        achieved = None
+        achieved = wrists = None
         if sim:
             from robogest.backends.mujoco_sim import simulate
             from robogest.robot import find_robot
@@ -148,7 +169,11 @@ def evaluate_files(
             if not pred.robot:
                 raise InputError(f"{pred_path}: the trajectory names no robot, so --sim cannot simulate it")
             achieved = simulate(pred, find_robot(pred.robot)).q_achieved_rad
-        res = evaluate_trajectory(pred, gt_q, beats, spans, n_shifts=n_shifts, achieved_q_rad=achieved)
+        if onsets is not None:
+            wrists = _robot_wrists(pred, achieved)
+        res = evaluate_trajectory(
+            pred, gt_q, beats, spans, n_shifts=n_shifts, achieved_q_rad=achieved, onsets_s=onsets, wrist_pos_m=wrists
+        )
     else:
         if gt is not None and gt.skeleton.names != pred.skeleton.names:
             raise InputError(f"{gt_path}: skeleton differs from {pred_path}'s")
@@ -156,7 +181,9 @@ def evaluate_files(
         if gt is not None:
             res_gt = gt.resample(pred.fps) if gt.fps != pred.fps else gt
             gt_pos = res_gt.positions()
-        res = evaluate_motion(pred.positions(), pred.fps, pred.skeleton.names, gt_pos, beats, spans, n_shifts)
+        res = evaluate_motion(
+            pred.positions(), pred.fps, pred.skeleton.names, gt_pos, beats, spans, n_shifts, onsets_s=onsets
+        )
         if gt is not None and gt.fps != pred.fps:
             res["gt_resampled_from_fps"] = float(gt.fps)
     res["files"] = {

@@ -7,7 +7,13 @@ from pathlib import Path
 
 import numpy as np
 
-from robogest.cli.common import add_speech_args, ensure_audio_file, speech_from_args
+from robogest.cli.common import (
+    add_gesture_args,
+    add_speech_args,
+    ensure_audio_file,
+    generator_options,
+    speech_from_args,
+)
 from robogest.cli.progress import progress_bar
 from robogest.robot.registry import DEFAULT_ROBOT
 
@@ -15,6 +21,7 @@ SPEAK_EPILOG = """examples:
   robogest speak "Hello, I am a robot. Nice to meet you!" --video out/hello.mp4
   robogest speak --audio talk.wav --transcript talk.TextGrid --robot humanoid_sts3215 --save out/talk.npz
   robogest speak "Hi" --backend dynamixel --port /dev/ttyUSB0
+  robogest speak "Look ^gesture(point_away) over there. It is huge!" --style lively
 
 With --backend sim (the default) nothing moves but the MuJoCo model; with dynamixel/feetech the robot's
 bus section gives ids and models, --port/--baud override it. Every command goes through the safety layer
@@ -62,6 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--checkpoint", metavar="FILE", help="trained weights for a learned generator")
     p.add_argument("--seed", type=int, default=0, help="random seed; same input + seed = same motion")
+    add_gesture_args(p)
     _add_output_args(p)
     p.set_defaults(func=run_speak)
 
@@ -137,7 +145,7 @@ def run_speak(args: argparse.Namespace) -> int:
     _check_export(args)
     robot = find_robot(args.robot)
     speech = speech_from_args(args)
-    opts = {"checkpoint": args.checkpoint} if args.checkpoint else {}
+    opts = {"checkpoint": args.checkpoint} if args.checkpoint else generator_options(args)
     result = speak(speech, robot, args.generator, seed=args.seed, fps=args.fps, generator_options=opts)
     traj = result.trajectory
     if args.save:

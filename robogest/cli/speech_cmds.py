@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from robogest.cli.common import add_json_flag, add_speech_args, print_json, speech_from_args
+from robogest.cli.common import (
+    add_gesture_args,
+    add_json_flag,
+    add_speech_args,
+    generator_options,
+    print_json,
+    speech_from_args,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -34,6 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="gesture generator: rhythm, gesticulator, rhythmic, s2ag, or an installed plugin's (default: %(default)s)",
     )
     g.add_argument("--seed", type=int, default=0, help="random seed; same input + seed = same motion")
+    add_gesture_args(g)
     g.add_argument("--plot", metavar="FILE.png", help="also plot wrist trajectories with beats and silent spans")
     g.set_defaults(func=run_generate)
 
@@ -64,7 +72,7 @@ def run_generate(args: argparse.Namespace) -> int:
     from robogest.motion import save_bvh
 
     speech = speech_from_args(args)
-    motion = make_generator(args.generator).generate(speech, seed=args.seed)
+    motion = make_generator(args.generator, **generator_options(args)).generate(speech, seed=args.seed)
     save_bvh(motion, Path(args.out))
     print(f"{motion.n_frames} frames at {motion.fps:g} fps ({motion.duration_s:.2f} s) written to {args.out}")
     if args.plot:
