@@ -24,6 +24,11 @@ def add_speech_args(p: argparse.ArgumentParser, text_positional: bool = True) ->
     p.add_argument("--wpm", type=int, default=160, help="speaking rate for TEXT, words/min (default: %(default)s)")
 
 
+def speech_inputs(args: argparse.Namespace) -> dict[str, str | None]:
+    """The files :func:`speech_from_args` reads, by flag, for :func:`robogest.cli.checks.check_outputs`."""
+    return {"--audio": args.audio, "--transcript": args.transcript}
+
+
 def speech_from_args(args: argparse.Namespace) -> Speech:
     from robogest.pipeline import load_speech_input
 

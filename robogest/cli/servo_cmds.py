@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import signal
 import sys
 import threading
@@ -59,9 +60,11 @@ def register(subparsers: Any) -> None:
 
 # --- virtual-bus ---------------------------------------------------------------------------------
 def _virtual_bus(args: argparse.Namespace) -> int:
+    from robogest.cli.checks import check_outputs
     from robogest.robot.registry import find_robot
     from robogest.virtualbus import FaultSpec, VirtualBus
 
+    check_outputs({"--record": args.record}, {"--robot": args.robot if os.path.isfile(args.robot) else None})
     robot = find_robot(args.robot)
     bus = VirtualBus(robot, FaultSpec.parse(args.faults))
     stop = threading.Event()

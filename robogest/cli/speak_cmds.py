@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 import numpy as np
 
-from robogest.cli.common import add_speech_args, ensure_audio_file, speech_from_args
+from robogest.cli import checks
+from robogest.cli.common import add_speech_args, ensure_audio_file, speech_from_args, speech_inputs
 from robogest.cli.progress import progress_bar
 from robogest.robot.registry import DEFAULT_ROBOT
 
@@ -28,8 +30,8 @@ def _add_output_args(p: argparse.ArgumentParser) -> None:
                    "(default: %(default)s)")  # fmt: skip
     p.add_argument("--backend", default="sim", help="sim (MuJoCo, default), dynamixel or feetech")
     p.add_argument("--port", help="serial port for dynamixel/feetech (default: the robot YAML's bus.port)")
-    p.add_argument("--baud", type=int, help="baud rate (default: the robot YAML's bus.baudrate)")
-    p.add_argument("--fps", type=float, default=50.0, help="command rate, Hz (default: %(default)s)")
+    p.add_argument("--baud", type=checks.baud, help="baud rate (default: the robot YAML's bus.baudrate)")
+    p.add_argument("--fps", type=checks.rate_hz, default=50.0, help="command rate, 1..1000 Hz (default: %(default)s)")
     p.add_argument("--save", metavar="FILE.npz", help="write the final command trajectory (and the audio as .wav)")
     p.add_argument("--video", metavar="FILE.mp4", help="render the simulated robot with the speech audio (sim)")
     p.add_argument("--plot", metavar="FILE.png", help="plot wrist trajectories, beats, silent spans, joint commands")
@@ -49,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_speech_args(p)
     p.add_argument("--generator", default="rhythm", help="gesture generator (default: %(default)s)")
     p.add_argument("--checkpoint", metavar="FILE", help="trained weights for a learned generator")
-    p.add_argument("--seed", type=int, default=0, help="random seed; same input + seed = same motion")
+    p.add_argument("--seed", type=checks.seed, default=0, help="random seed; same input + seed = same motion")
     _add_output_args(p)
     p.set_defaults(func=run_speak)
 
@@ -63,6 +65,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--audio", metavar="FILE", help="audio to play/mux with the motion")
     _add_output_args(q)
     q.set_defaults(func=run_play)
+
+
+def _check_paths(args: argparse.Namespace, inputs: dict[str, str | None]) -> None:
+    """Refuse bad output paths before any work (see :func:`robogest.cli.checks.check_outputs`)."""
+    outputs = {"--save": args.save, "--video": args.video, "--plot": args.plot}
+    if args.save and getattr(args, "text", None) is not None:  # synthesized speech is saved beside --save
+        outputs["--save's audio"] = str(Path(args.save).with_suffix(".wav"))
+    robot_file = args.robot if os.path.isfile(args.robot) else None
+    checks.check_outputs(outputs, {**inputs, "--robot": robot_file})
 
 
 def _backend_options(args: argparse.Namespace) -> dict:
@@ -114,6 +125,7 @@ def run_speak(args: argparse.Namespace) -> int:
 
     if args.checkpoint and args.generator == "rhythm":
         raise InputError("--checkpoint is for learned generators; the default 'rhythm' generator needs none")
+    _check_paths(args, {**speech_inputs(args), "--checkpoint": args.checkpoint})
     robot = find_robot(args.robot)
     speech = speech_from_args(args)
     opts = {"checkpoint": args.checkpoint} if args.checkpoint else {}
@@ -139,25 +151,24 @@ def run_speak(args: argparse.Namespace) -> int:
 
 def run_play(args: argparse.Namespace) -> int:
     from robogest.errors import InputError
+    from robogest.fileio import npz_keys
     from robogest.pipeline import motion_to_trajectory
     from robogest.robot import find_robot
     from robogest.safety import check_limits
     from robogest.trajectory import Trajectory
 
-    robot = find_robot(args.robot)
     path = Path(args.motion)
     if not path.is_file():
         raise InputError(f"{path}: no such motion file")
+    _check_paths(args, {"MOTION": args.motion, "--audio": args.audio})
+    robot = find_robot(args.robot)
     audio, sr = None, 16000
     if args.audio:
         from robogest.speech import load_speech
 
         sp = load_speech(args.audio)
         audio, sr = sp.audio, sp.sr
-    is_traj = False
-    if path.suffix == ".npz":
-        with np.load(path, allow_pickle=False) as z:
-            is_traj = "q_rad" in z
+    is_traj = path.suffix == ".npz" and "q_rad" in npz_keys(path)
     if is_traj:
         traj = Trajectory.load(path)
         if traj.joint_names != robot.joint_names:

@@ -6,7 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
-from robogest.cli.common import add_speech_args, speech_from_args
+from robogest.cli import checks
+from robogest.cli.common import add_speech_args, speech_from_args, speech_inputs
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_speech_args(g, text_positional=False)
     g.add_argument("--out", required=True, metavar="FILE.bvh", help="motion file to write")
     g.add_argument("--generator", default="rhythm", help="gesture generator (default: %(default)s)")
-    g.add_argument("--seed", type=int, default=0, help="random seed; same input + seed = same motion")
+    g.add_argument("--seed", type=checks.seed, default=0, help="random seed; same input + seed = same motion")
     g.add_argument("--plot", metavar="FILE.png", help="also plot wrist trajectories with beats and silent spans")
     g.set_defaults(func=run_generate)
 
@@ -42,6 +43,7 @@ def run_analyze(args: argparse.Namespace) -> int:
     if args.audio_file and args.audio:
         raise InputError("give the audio file once: either as AUDIO or as --audio")
     args.audio = args.audio or args.audio_file
+    checks.check_outputs({"--save-features": args.save_features}, speech_inputs(args))
     speech = speech_from_args(args)
     summary = speech_summary(speech)
     if args.json:
@@ -59,6 +61,7 @@ def run_generate(args: argparse.Namespace) -> int:
     from robogest.generators import make_generator
     from robogest.motion import save_bvh
 
+    checks.check_outputs({"--out": args.out, "--plot": args.plot}, speech_inputs(args))
     speech = speech_from_args(args)
     motion = make_generator(args.generator).generate(speech, seed=args.seed)
     save_bvh(motion, Path(args.out))
