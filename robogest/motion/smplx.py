@@ -10,12 +10,12 @@ skeleton's point of view and are dropped. The body model file is not needed: bon
 from __future__ import annotations
 
 import os
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from robogest.errors import InputError
+from robogest.fileio import read_npz
 from robogest.motion import rotations as R
 from robogest.motion.human_motion import HumanMotion
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
@@ -88,11 +88,7 @@ def load_smplx(path: str | os.PathLike, fps: float | None = None) -> HumanMotion
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such SMPL-X file. Check the path.")
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            data = {k: npz[k] for k in npz.files}
-    except (OSError, ValueError, zipfile.BadZipFile) as e:
-        raise InputError(f"{path}: not a readable .npz ({e}). Pass an SMPL-X parameter file.") from None
+    data = read_npz(path, what="SMPL-X")
     rotvec = _body_rotvecs(data, path)  # (T, 22, 3)
     n_frames = rotvec.shape[0]
     if n_frames == 0:
