@@ -135,7 +135,11 @@ class VideoWriter:
         self._tmp = Path(tmp)
         self.n_frames = 0
         try:
-            self._container = av.open(str(self._tmp), mode="w", format="mp4")
+            # Our own file object, so that abort() can always close it (PyAV keeps its own handle open when
+            # flushing fails, e.g. on a full disk); unbuffered, so a full disk fails in a write, which PyAV
+            # re-raises, never in a seek, which it would print as a traceback and drop.
+            self._file = open(self._tmp, "wb", buffering=0)  # noqa: SIM115 - closed by close()/abort()
+            self._container = av.open(self._file, mode="w", format="mp4")
             self._video = self._container.add_stream("libx264", rate=Fraction(self.fps, 1))
             self._video.width, self._video.height = self.width, self.height
             self._video.pix_fmt = "yuv420p"
@@ -146,7 +150,7 @@ class VideoWriter:
             if audio is not None and len(audio):
                 self._setup_audio(np.asarray(audio), int(audio_sr))
         except Exception as e:
-            self._tmp.unlink(missing_ok=True)
+            self.abort()
             if isinstance(e, OSError):
                 raise write_error(self.path, e) from None
             raise
@@ -216,6 +220,7 @@ class VideoWriter:
             for packet in self._video.encode(None):
                 self._container.mux(packet)
             self._container.close()
+            self._file.close()
             publish(self._tmp, self._real)
         except OSError as e:
             self.abort()
@@ -227,8 +232,9 @@ class VideoWriter:
 
     def abort(self) -> None:
         """Drop the partial file."""
-        with contextlib.suppress(Exception):
-            self._container.close()
+        for part in (getattr(self, "_container", None), getattr(self, "_file", None)):
+            with contextlib.suppress(Exception):
+                part.close()
         self._tmp.unlink(missing_ok=True)
 
     def __enter__(self) -> VideoWriter:

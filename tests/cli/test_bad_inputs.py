@@ -175,6 +175,18 @@ def full_disk(name: str = "full") -> Callable[[Path], None]:
     return make
 
 
+def renderer(d: Path) -> None:
+    """Skip the row where MuJoCo cannot render offscreen (no EGL)."""
+    from robogest.backends.mujoco_sim import load_sim_model
+    from robogest.backends.render import make_renderer
+    from robogest.errors import MissingDependencyError
+
+    try:
+        make_renderer(load_sim_model(find_robot(ROBOT)).model, 32, 32).close()
+    except MissingDependencyError as e:
+        pytest.skip(str(e))
+
+
 def all_of(*makers: Callable[[Path], None]) -> Callable[[Path], None]:
     def make(d: Path) -> None:
         for m in makers:
@@ -270,6 +282,8 @@ CASES = [
     # --- a write that fails half-way (disk full): one line, exit 1, nothing left behind
     Case("play-save-disk-full", ["play", "t.npz", *A, "--save", "full/x.npz"], all_of(traj(), full_disk()), 1,
          r"full/x\.npz: cannot write \(No space left on device\); nothing was written"),
+    Case("play-video-disk-full", ["play", "t.npz", *A, "--video", "full/v.mp4"], all_of(traj(), full_disk(), renderer),
+         1, r"full/v\.mp4: cannot write \(No space left on device\); nothing was written"),
     # --- option values
     Case("fps-inf", ["speak", "Hi", "--fps", "inf"], None, 2,
          r"argument --fps: inf is out of range; expected 1\.\.1000 Hz"),
@@ -453,4 +467,4 @@ def test_bad_input_is_one_line(case: Case, tmp_path: Path, monkeypatch, capsys) 
     finally:
         for m in tmp_path.iterdir():
             if m.is_dir() and os.path.ismount(m):
-                subprocess.run(["umount", str(m)], check=False)
+                subprocess.run(["umount", "-l", str(m)], check=False)
