@@ -25,6 +25,7 @@ import soundfile as sf
 from robogest.cli.main import main
 from robogest.motion import HumanMotion, save_bvh
 from robogest.robot import find_robot
+from tests.conftest import fill_up, mount_tmpfs
 
 ROBOT = "humanoid_xl430"
 
@@ -146,31 +147,17 @@ def read_only_file(name: str) -> Callable[[Path], None]:
     return make
 
 
-def _mount_tmpfs(where: Path, options: str) -> None:
-    where.mkdir()
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(where)], capture_output=True)
-    if r.returncode:
-        pytest.skip(f"cannot mount a small tmpfs here ({r.stderr.decode().strip()})")
-
-
 def read_only_fs(name: str = "ro") -> Callable[[Path], None]:
     """A read-only tmpfs at ``name`` (unwritable even for root; skips where mounting is not allowed)."""
-    return lambda d: _mount_tmpfs(d / name, "size=64k,ro")
+    return lambda d: mount_tmpfs(d / name, "size=64k,ro")
 
 
 def full_disk(name: str = "full") -> Callable[[Path], None]:
     """A 64 kB tmpfs at ``name``, filled up (skips where mounting is not allowed)."""
 
     def make(d: Path) -> None:
-        _mount_tmpfs(d / name, "size=64k")
-        fd = os.open(d / name / "filler", os.O_WRONLY | os.O_CREAT)
-        try:
-            while os.write(fd, b"\0" * 4096):
-                pass
-        except OSError:
-            pass
-        finally:
-            os.close(fd)
+        mount_tmpfs(d / name, "size=64k")
+        fill_up(d / name)
 
     return make
 
