@@ -22,7 +22,7 @@ import numpy as np
 from robogest.errors import InputError
 from robogest.fileio import atomic_path
 from robogest.motion import rotations as R
-from robogest.motion.human_motion import HumanMotion
+from robogest.motion.human_motion import HumanMotion, check_take
 from robogest.motion.skeleton import Skeleton
 
 #: File centimetres per metre used by :func:`save_bvh`.
@@ -192,6 +192,7 @@ def _parse_motion(lines: list[str], start: int, n_channels: int, n_joints: int, 
     rows = [(j + 1, ln) for j, ln in enumerate(lines[i:], start=i) if ln.strip()]
     if n_frames <= 0:
         raise _err(path, "the file has no frames", "Export at least one frame")
+    check_take(n_frames, 1.0 / frame_time, str(path))
     if len(rows) != n_frames:
         raise _err(
             path,

@@ -17,7 +17,7 @@ import numpy as np
 from robogest.errors import InputError
 from robogest.fileio import read_npz
 from robogest.motion import rotations as R
-from robogest.motion.human_motion import HumanMotion
+from robogest.motion.human_motion import HumanMotion, check_take
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
 
 #: Canonical joint -> SMPL(-X/-H) joint index (the first 22 joints are shared by the three models).
@@ -97,7 +97,11 @@ def load_smplx(path: str | os.PathLike, fps: float | None = None) -> HumanMotion
         key = next((k for k in _FPS_KEYS if k in data), None)
         if key is None:
             raise InputError(f"{path}: no frame rate ({' / '.join(_FPS_KEYS)}). Pass fps= explicitly.")
-        fps = float(np.asarray(data[key]).reshape(-1)[0])
+        try:
+            fps = float(np.asarray(data[key]).reshape(-1)[0])
+        except (TypeError, ValueError, IndexError):
+            raise InputError(f"{path}: {key} is not a number") from None
+    check_take(n_frames, fps, str(path))
     trans = np.asarray(data.get("trans", np.zeros((n_frames, 3))), dtype=np.float64)
     if trans.shape != (n_frames, 3):
         raise InputError(f"{path}: 'trans' must be ({n_frames}, 3), got {trans.shape}")

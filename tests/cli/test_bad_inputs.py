@@ -86,6 +86,13 @@ def bvh_many_joints(d: Path) -> None:
     (d / "wide.bvh").write_text("\n".join(lines) + "\n")
 
 
+def bvh_long(d: Path) -> None:
+    """One joint, one channel, a million frames of one second: 11 days, from a 2 MB file."""
+    head = ["HIERARCHY", "ROOT hips", "{", "OFFSET 0 0 0", "CHANNELS 1 Xposition", "End Site", "{", "OFFSET 0 1 0", "}"]
+    lines = [*head, "}", "MOTION", "Frames: 1000000", "Frame Time: 1"] + ["0"] * 1_000_000
+    (d / "long.bvh").write_text("\n".join(lines) + "\n")
+
+
 def text(name: str, content: str) -> Callable[[Path], None]:
     return lambda d: (d / name).write_text(content)
 
@@ -324,6 +331,10 @@ CASES = [
     Case("bvh-frames-times-joints", ["play", "wide.bvh", *A], bvh_many_joints, 2,
          r"601 frames x 100001 joints is more than"),
     Case("bvh-too-large", ["play", "big.bvh", *A], sparse("big.bvh", 3 * 1024**3), 2, r"3\.0 GiB is larger than"),
+    Case("bvh-lasts-11-days", ["play", "long.bvh", *A], bvh_long, 2, r"long\.bvh: 1000000 frames at 1 fps last"),
+    Case("smplx-fps-1e-9", ["play", "s.npz", *A],
+         lambda d: np.savez(d / "s.npz", poses=np.zeros((5, 165)), fps=1e-9), 2,
+         r"s\.npz: frame rate 1e-09 fps is outside 1\.\.1000"),
     Case("smplx-pickled", ["play", "s.npz", *A],
          lambda d: np.savez(d / "s.npz", poses=np.array([None], dtype=object)), 2, r"holds pickled Python objects"),
     # --- speech inputs
