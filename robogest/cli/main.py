@@ -20,7 +20,8 @@ _MODULES = ("speech_cmds", "robots_cmds", "speak_cmds", "servo_cmds", "eval_cmds
 
 EPILOG = """exit codes:
   0  success
-  1  other robogest error (e.g. an output could not be written: disk full; no partial file is left)
+  1  other robogest error, e.g. an output could not be written (disk full; no partial file is left)
+     or out of memory
   2  bad input (audio, transcript, motion file, option value, output path); checked before any work:
      an output that is an input or another output, a folder, a device or FIFO, or not writable
   3  bad robot definition or config file (the message names file and key)

@@ -51,7 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_speech_args(p)
     p.add_argument("--generator", default="rhythm", help="gesture generator (default: %(default)s)")
     p.add_argument("--checkpoint", metavar="FILE", help="trained weights for a learned generator")
-    p.add_argument("--seed", type=checks.seed, default=0, help="random seed; same input + seed = same motion")
+    p.add_argument(
+        "--seed", type=checks.seed, default=0, help="random seed, 0..2**32-1; same input + seed = same motion"
+    )
     _add_output_args(p)
     p.set_defaults(func=run_speak)
 

@@ -31,7 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_speech_args(g, text_positional=False)
     g.add_argument("--out", required=True, metavar="FILE.bvh", help="motion file to write")
     g.add_argument("--generator", default="rhythm", help="gesture generator (default: %(default)s)")
-    g.add_argument("--seed", type=checks.seed, default=0, help="random seed; same input + seed = same motion")
+    g.add_argument(
+        "--seed", type=checks.seed, default=0, help="random seed, 0..2**32-1; same input + seed = same motion"
+    )
     g.add_argument("--plot", metavar="FILE.png", help="also plot wrist trajectories with beats and silent spans")
     g.set_defaults(func=run_generate)
 

@@ -466,3 +466,16 @@ def test_bad_input_is_one_line(case: Case, tmp_path: Path, monkeypatch, capsys) 
         for m in tmp_path.iterdir():
             if m.is_dir() and os.path.ismount(m):
                 subprocess.run(["umount", "-l", str(m)], check=False)
+
+
+def test_out_of_memory_is_one_line(monkeypatch, capsys) -> None:
+    """A MemoryError that no cap caught still ends in one line and exit code 1, not a traceback."""
+    import robogest.cli.speech_cmds as cmds
+
+    def run(args):
+        raise MemoryError
+
+    monkeypatch.setattr(cmds, "run_analyze", run)
+    assert main(["analyze", "--text", "Hi"]) == 1
+    err = capsys.readouterr().err
+    assert err.splitlines() == ["robogest: error: out of memory; the input is too large for this machine"]
