@@ -12,6 +12,7 @@ import hashlib
 import io
 import os
 import re
+import stat
 import subprocess
 import zipfile
 from collections.abc import Callable
@@ -116,6 +117,15 @@ def npz_declaring(name: str, shape: tuple[int, ...]) -> Callable[[Path], None]:
             zf.writestr("q_rad.npy", buf.getvalue())
 
     return make
+
+
+def null_device(d: Path) -> None:
+    """A stand-in for /dev/null at ``d/null`` (the real one is never risked: code without the check would replace
+    it); skips where device nodes cannot be made (not root)."""
+    try:
+        os.mknod(d / "null", 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+    except PermissionError:
+        pytest.skip("cannot make a device node here (not root); the FIFO rows cover special files")
 
 
 def folder(name: str) -> Callable[[Path], None]:
@@ -254,21 +264,33 @@ CASES = [
          2, r"--save ro\.npz: the file is read-only"),
     Case("play-save-read-only-fs", ["play", "t.npz", *A, "--save", "ro/x.npz"], all_of(traj(), read_only_fs()), 2,
          r"--save ro/x\.npz: the folder .*ro is not writable"),
-    Case("play-save-dev-null", ["play", "t.npz", *A, "--save", "/dev/null"], traj(), 2,
-         r"--save /dev/null: is a device, FIFO or socket"),
+    Case("play-save-dev-null", ["play", "t.npz", *A, "--save", "null"], all_of(traj(), null_device), 2,
+         r"--save null: is a device, FIFO or socket"),
     Case("play-save-fifo", ["play", "t.npz", *A, "--save", "p.npz"], all_of(traj(), fifo("p.npz")), 2,
          r"--save p\.npz: is a device, FIFO or socket"),
     Case("play-save-symlink-to-dev-null", ["play", "t.npz", *A, "--save", "n.npz"],
-         all_of(traj(), symlink("n.npz", "/dev/null")), 2,
+         all_of(traj(), null_device, symlink("n.npz", "null")), 2,
          r"--save n\.npz: is a device, FIFO or socket \(via the symlink"),
+    Case("analyze-features-dev-null", ["analyze", "a.wav", "--save-features", "null"], all_of(wav(), null_device), 2,
+         r"--save-features null: is a device"),
+    Case("generate-out-fifo", ["generate", "--audio", "a.wav", "--out", "p.bvh"], all_of(wav(), fifo("p.bvh")), 2,
+         r"--out p\.bvh: is a device, FIFO or socket"),
+    Case("speak-video-symlink-to-fifo", ["speak", "--audio", "a.wav", "--video", "v.mp4"],
+         all_of(wav(), fifo("p"), symlink("v.mp4", "p")), 2, r"--video v\.mp4: is a device, FIFO or socket \(via"),
+    Case("eval-json-dev-null", ["eval", "--pred", "t.npz", "--json", "null"], all_of(traj(), null_device), 2,
+         r"--json null: is a device"),
+    Case("virtual-bus-record-dev-null", ["virtual-bus", "--robot", ROBOT, "--record", "null"], null_device, 2,
+         r"--record null: is a device"),
+    Case("train-out-parent-is-file", ["train", "--data", "d", "--out", "f/run"], all_of(folder("d"), text("f", "x")),
+         2, r"--out f/run: .*f is a file, not a folder"),
     Case("eval-json-is-folder", ["eval", "--pred", "t.npz", "--json", "d"], all_of(traj(), folder("d")), 2,
          r"--json d: is a folder"),
     Case("eval-plots-is-file", ["eval", "--pred", "t.npz", "--plots", "f"], all_of(traj(), text("f", "x")), 2,
          r"--plots f: is a file, not a folder"),
     Case("robots-render-is-folder", ["robots", "show", ROBOT, "--render", "d"], folder("d"), 2,
          r"--render d: is a folder"),
-    Case("robots-render-dev-null", ["robots", "show", ROBOT, "--render", "/dev/null"], None, 2,
-         r"--render /dev/null: is a device"),
+    Case("robots-render-dev-null", ["robots", "show", ROBOT, "--render", "null"], null_device, 2,
+         r"--render null: is a device"),
     Case("virtual-bus-record-is-folder", ["virtual-bus", "--robot", ROBOT, "--record", "d"], folder("d"), 2,
          r"--record d: is a folder"),
     Case("train-out-is-file", ["train", "--data", "d", "--out", "f"], all_of(folder("d"), text("f", "x")), 2,
@@ -342,6 +364,11 @@ CASES = [
          all_of(wav(), text("w.json", "[" * 100_000 + "]" * 100_000)), 2, r"w\.json: .*nested too deeply|invalid JSON"),
     Case("transcript-huge", ["analyze", "a.wav", "--transcript", "w.txt"], all_of(wav(), sparse("w.txt", 65 * 1024**2)),
          2, r"transcript w\.txt: 65 MiB is larger than the 64 MiB"),
+    Case("generate-transcript-deep-json", ["generate", "--audio", "a.wav", "--transcript", "w.json", "--out", "m.bvh"],
+         all_of(wav(), text("w.json", '{"words":' * 50_000 + "[]" + "}" * 50_000)), 2,
+         r"w\.json: .*(nested too deeply|invalid JSON)"),
+    Case("eval-audio-rate-absurd", ["eval", "--pred", "t.npz", "--audio", "a.wav"], all_of(traj(), wav(sr=1000)), 2,
+         r"a\.wav: sample rate 1000 Hz is outside"),
     Case("audio-rate-absurd", ["analyze", "a.wav"], wav(sr=1000), 2, r"audio a\.wav: sample rate 1000 Hz is outside"),
     # --- checkpoints
     Case("checkpoint-legacy-format", ["speak", "Hi", "--generator", "gesticulator", "--checkpoint", "c.pt"],
