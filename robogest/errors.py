@@ -42,3 +42,10 @@ class MissingDependencyError(RobogestError):
     """An optional component (renderer, audio device, model weights) is not installed."""
 
     exit_code = 6
+
+
+class RobogestWarning(UserWarning):
+    """Something the user should know that does not stop the command (e.g. a plugin shadowed by a built-in).
+
+    The CLI prints it as one ``robogest: warning: ...`` line on stderr.
+    """

@@ -63,13 +63,14 @@ class DynamixelBackend(ServoBackend):
             "max": XReg.MAX_POSITION_LIMIT if p2 else P1Reg.CCW_ANGLE_LIMIT,
         }
 
-    def _lookup_model(self, name: str, sid: int) -> ServoModel:
+    @classmethod
+    def lookup_model(cls, name: str, protocol: float) -> ServoModel:
         key = name.upper().replace("_", "-")
         m = next((m for n, m in MODELS.items() if n == key or n.startswith(key)), None)
         if m is None:
-            raise ConfigError(f"servo id {sid}: unknown Dynamixel model {name!r}; known: {', '.join(MODELS)}")
-        if m.protocol != self.protocol:
-            raise ConfigError(f"servo id {sid}: {m.name} speaks Protocol {m.protocol}, bus says {self.protocol}")
+            raise ConfigError(f"unknown Dynamixel model {name!r}; known: {', '.join(MODELS)}")
+        if m.protocol != protocol:
+            raise ConfigError(f"{m.name} speaks Protocol {m.protocol}, bus says {protocol}")
         return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick)
 
     def _packet_protocol(self) -> float:

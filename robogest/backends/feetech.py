@@ -51,13 +51,14 @@ class FeetechBackend(ServoBackend):
         }
         self._R = R
 
-    def _lookup_model(self, name: str, sid: int) -> ServoModel:
+    @classmethod
+    def lookup_model(cls, name: str, protocol: float) -> ServoModel:
         key = name.upper().replace("-", "").replace("_", "")
         m = MODELS.get(key)
         if m is None:
-            raise ConfigError(f"servo id {sid}: unknown Feetech model {name!r}; known: {', '.join(MODELS)}")
-        if m.protocol_end != int(self.protocol):
-            raise ConfigError(f"servo id {sid}: {m.name} uses protocol {m.protocol_end}, bus says {self.protocol:g}")
+            raise ConfigError(f"unknown Feetech model {name!r}; known: {', '.join(MODELS)}")
+        if m.protocol_end != int(protocol):
+            raise ConfigError(f"{m.name} uses protocol {m.protocol_end}, bus says {protocol:g}")
         return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick)
 
     def _packet_protocol(self) -> int:

@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from robogest.backends.base import Backend
-from robogest.errors import BackendError, ConfigError
+from robogest.errors import BackendError, ConfigError, SafetyError
 from robogest.robot.config import RobotConfig
 
 #: Result of one raw SDK transaction: (value, ok, error byte, comm description).
@@ -50,7 +50,7 @@ class ServoBackend(Backend):
         Extra attempts for one transaction that timed out or came back corrupted; for a sync read,
         extra rounds that re-read only the servos whose reply was missing or corrupt.
     tick_retry_budget : int
-        Servo re-reads allowed across one control tick (:meth:`write_goal` + :meth:`read_positions`),
+        Servo re-reads allowed across one control tick (:meth:`_send_goal` + :meth:`read_positions`),
         so one tick never takes much longer than its period. A position read still missing when the
         budget or the rounds are spent keeps the servo's last known value for that tick; a torque write
         that needs more than the budget stops the motion; a health reading that cannot get through is
@@ -61,7 +61,8 @@ class ServoBackend(Backend):
         row, is declared lost: motion stopped, torque off. The default leaves room for one reply timeout
         (~35 ms with the SDKs' 16 ms latency-timer allowance) so a vanished servo stops the motion within 0.2 s.
     control_rate_hz : float
-        Tick rate used to turn ``lost_after_s`` into ticks; :func:`~robogest.backends.player.play` sets it.
+        Tick rate used to turn ``lost_after_s`` into ticks, and the rate of the goal guard and of the ramp to rest
+        at shutdown; :func:`~robogest.backends.player.play` sets it (:meth:`set_control_rate`).
     health_hz : float
         Each servo's temperature, voltage and load are read at this rate (round robin).
     max_temperature_c : float
@@ -70,8 +71,6 @@ class ServoBackend(Backend):
         Stop outside this range; default: the servos' own voltage-limit registers.
     max_load_pct : float, optional
         Stop when |load| exceeds this percentage of the maximum (off by default).
-    shutdown_rate_hz : float
-        Rate of the ramp to rest in :meth:`shutdown`.
     """
 
     family: ClassVar[str] = ""
@@ -92,7 +91,6 @@ class ServoBackend(Backend):
         max_temperature_c: float = 65.0,
         voltage_range_v: tuple[float, float] | None = None,
         max_load_pct: float | None = None,
-        shutdown_rate_hz: float = 50.0,
         **_ignored: Any,
     ) -> None:
         super().__init__(robot)
@@ -112,12 +110,11 @@ class ServoBackend(Backend):
         self.retries = retries
         self.tick_retry_budget = tick_retry_budget
         self.lost_after_s = lost_after_s
-        self.control_rate_hz = control_rate_hz
+        self.set_control_rate(control_rate_hz)
         self.health_period_s = 1.0 / health_hz if health_hz > 0 else float("inf")
         self.max_temperature_c = max_temperature_c
         self.voltage_range_v = voltage_range_v
         self.max_load_pct = max_load_pct
-        self.shutdown_rate_hz = shutdown_rate_hz
 
         servos = [bus.servos[n] for n in robot.joint_names]
         self.ids = np.array([s.id for s in servos], dtype=np.int64)
@@ -135,7 +132,6 @@ class ServoBackend(Backend):
         self.port_lost = False
         self.torque_enabled = False
         self.torque_off_attempted = False
-        self.last_goal_rad: np.ndarray | None = None
         self.retry_count = 0  #: re-sent transactions and re-read servos
         self.missed_reads = 0  #: position reads that got no valid reply within the tick (last value kept)
         self.events: list[str] = []  #: retries and health readings worth reporting
@@ -157,10 +153,6 @@ class ServoBackend(Backend):
         self._misses = np.zeros(n, dtype=np.int64)  # consecutive ticks without a valid reading
         self._miss_attempts = np.zeros(n, dtype=np.int64)  # attempts since the last valid reading
 
-    def set_control_rate(self, rate_hz: float) -> None:
-        """Tick rate of the caller (turns ``lost_after_s`` into a tick count)."""
-        self.control_rate_hz = float(rate_hz)
-
     @property
     def lost_after_ticks(self) -> int:
         return max(1, math.ceil(self.lost_after_s * self.control_rate_hz - 1e-9))
@@ -170,8 +162,16 @@ class ServoBackend(Backend):
     #: share these shapes, one being a port of the other). Set by each family.
     sdk: ClassVar[Any] = None
 
-    def _lookup_model(self, name: str, sid: int) -> ServoModel:
+    @classmethod
+    def lookup_model(cls, name: str, protocol: float) -> ServoModel:
+        """Facts of the servo model called ``name`` on a bus of this ``protocol``; ConfigError if unknown there."""
         raise NotImplementedError
+
+    def _lookup_model(self, name: str, sid: int) -> ServoModel:
+        try:
+            return self.lookup_model(name, self.protocol)
+        except ConfigError as e:
+            raise ConfigError(f"servo id {sid}: {e}") from None
 
     def _packet_protocol(self) -> Any:
         """The ``PacketHandler`` argument (protocol version, or byte order)."""
@@ -451,6 +451,7 @@ class ServoBackend(Backend):
             self._positions_known = False
             self._next_health = time.monotonic() + self.health_period_s / max(1, len(self.ids))
             self.read_positions()
+            self._connected()
         except BaseException:
             self._safe_close()
             raise
@@ -479,11 +480,10 @@ class ServoBackend(Backend):
         self._maybe_check_health()
         return self.ticks_to_rad(ticks)
 
-    def write_goal(self, q_rad: np.ndarray) -> None:
+    def _send_goal(self, q_rad: np.ndarray) -> None:
         self._budget = self.tick_retry_budget  # a new control tick starts here
         ticks = np.clip(self.rad_to_ticks(q_rad), self._tick_lo, self._tick_hi)
         self._sync_write(self.REG["goal"], ticks)
-        self.last_goal_rad = np.asarray(q_rad, float).copy()
 
     def set_torque(self, on: bool) -> None:
         """Torque on/off, one confirmed write per servo (a lost sync write must not leave torque on)."""
@@ -520,7 +520,7 @@ class ServoBackend(Backend):
             if self.is_connected and self.torque_enabled and not self.port_lost:
                 try:
                     self._ramp_to_rest()
-                except BackendError as e:
+                except (BackendError, SafetyError) as e:  # torque still goes off below
                     problems.append(str(e))
         finally:
             try:
@@ -537,22 +537,11 @@ class ServoBackend(Backend):
         self.events.extend(f"shutdown: {p}" for p in problems)
 
     def _ramp_to_rest(self) -> None:
-        from robogest.backends.player import ramp_duration, ramp_sample
-
-        rest = np.clip(self.robot.rest_q_rad, self.robot.q_min_rad, self.robot.q_max_rad)
-        start = self.last_goal_rad if self.last_goal_rad is not None else self.read_positions()
-        start = np.clip(start, self.robot.q_min_rad, self.robot.q_max_rad)
-        dur = ramp_duration(start, rest, self.robot.v_max_rad_s, self.robot.a_max_rad_s2)
-        period = 1.0 / self.shutdown_rate_hz
+        """From the last goal sent to rest, one guarded goal per control period, paced by the clock."""
         t0 = time.monotonic()
-        k = 1
-        while True:
-            t = k * period
-            self.write_goal(ramp_sample(start, rest, t, dur))
-            if t >= dur:
-                break
-            k += 1
-            time.sleep(max(0.0, t0 + k * period - time.monotonic()))
+        for k, q in enumerate(self.rest_ramp()):
+            time.sleep(max(0.0, t0 + k * self.control_period_s - time.monotonic()))
+            self.write_goal(q, source="ramp to rest at shutdown")
 
     # --- health ----------------------------------------------------------------------------------
     def _maybe_check_health(self) -> None:

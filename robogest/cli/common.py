@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from robogest.speech.types import Speech
@@ -47,3 +50,73 @@ def ensure_audio_file(speech: Speech, beside: Path) -> str:
     wav.parent.mkdir(parents=True, exist_ok=True)
     write_wav(speech, wav)
     return str(wav)
+
+
+# Output that scripts can read: tables on a terminal, tab-separated lines when piped, JSON on request.
+
+
+def add_json_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--json", action="store_true", help="print JSON instead of tables (for scripts)")
+
+
+def print_json(data: object) -> None:
+    """``data`` as indented JSON on stdout; numpy scalars/arrays and paths are converted."""
+    import json
+
+    def convert(x: object) -> object:
+        if hasattr(x, "tolist"):  # numpy scalar or array
+            return x.tolist()
+        if isinstance(x, Path):
+            return str(x)
+        raise TypeError(f"cannot write {type(x).__name__} as JSON")
+
+    print(json.dumps(data, indent=2, default=convert))
+
+
+@dataclass
+class TextTable:
+    """A titled table of strings. Cells and title are rich markup (``[red]...[/red]``, stripped when piped):
+    pass data through ``rich.markup.escape``."""
+
+    title: str
+    columns: Sequence[str]
+    rows: list[Sequence[str]] = field(default_factory=list)
+    right_aligned: Sequence[str] = ()
+
+
+def _plain(markup: str) -> str:
+    from rich.text import Text
+
+    return Text.from_markup(markup).plain
+
+
+def print_table(table: TextTable) -> None:
+    """A drawn table on a terminal; when stdout is a pipe or file, stable tab-separated lines.
+
+    Piped form: ``# title``, then the header, then one line per row; markup stripped, nothing wrapped or
+    truncated, so ``cut -f1`` or ``awk -F'\\t'`` read it.
+    """
+    if not sys.stdout.isatty():
+        print(f"# {_plain(table.title)}")
+        for row in (table.columns, *table.rows):
+            print("\t".join(_plain(str(c)).replace("\t", " ") for c in row))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    t = Table(title=table.title)
+    for col in table.columns:
+        t.add_column(col, justify="right" if col in table.right_aligned else "left")
+    for row in table.rows:
+        t.add_row(*(str(c) for c in row))
+    Console().print(t)
+
+
+def print_text(markup: str) -> None:
+    """A line of text with rich markup: styled on a terminal, plain (never wrapped) when piped."""
+    if not sys.stdout.isatty():
+        print(_plain(markup))
+        return
+    from rich.console import Console
+
+    Console().print(markup)

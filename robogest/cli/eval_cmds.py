@@ -192,19 +192,15 @@ def _plots(results: dict[str, dict], out_dir: Path) -> list[Path]:
 
 
 def _print_table(results: dict[str, dict]) -> None:
-    from rich.console import Console
-    from rich.table import Table
+    from rich.markup import escape
 
+    from robogest.cli.common import TextTable, print_table
     from robogest.eval.report import summary_rows
 
-    console = Console()
     for stem, r in results.items():
-        table = Table(title=f"{stem} ({r['kind']}, {r['n_frames']} frames at {r['fps']:g} fps)")
-        table.add_column("metric")
-        table.add_column("value", justify="right")
-        for name, value in summary_rows(r):
-            table.add_row(name, value)
-        console.print(table)
+        title = escape(f"{stem} ({r['kind']}, {r['n_frames']} frames at {r['fps']:g} fps)")
+        rows = [[escape(name), value] for name, value in summary_rows(r)]
+        print_table(TextTable(title, ["metric", "value"], rows, right_aligned=["value"]))
 
 
 def run_eval(args: argparse.Namespace) -> int:

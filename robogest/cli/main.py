@@ -1,15 +1,22 @@
 """``robogest`` command line: one subcommand module per area, each exposing ``register(subparsers)``.
 
 Exit codes: 0 success; 1 other robogest error; 2 bad input (file, flag, transcript); 3 bad robot/config
-file; 4 safety refusal; 5 hardware or simulator failure; 6 missing optional dependency; 130 Ctrl-C.
+file; 4 safety refusal; 5 hardware or simulator failure; 6 missing optional dependency; 130 Ctrl-C;
+141 stdout closed early (``robogest ... | head``), quietly, as a command killed by SIGPIPE would.
+
+When stdout is not a terminal it is line-buffered (each line reaches the pipe when printed) and tables are
+printed as tab-separated lines; ``--json`` on the listing commands prints JSON.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import io
+import os
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
 
 from robogest.cli.checks import OneLineParser
 from robogest.errors import RobogestError
@@ -29,7 +36,32 @@ EPILOG = """exit codes:
   5  hardware or simulator failure (servo missing, in error, port lost); torque was turned off
   6  optional dependency missing (the message says what to install)
   130 interrupted (Ctrl-C); the robot was sent to rest and torque turned off
+  141 stdout closed before the output ended (e.g. `| head`); ends quietly
+
+When stdout is a pipe or file: tables are tab-separated lines, each line is written as soon as it is
+printed, and `--json` (robots list/show, analyze) prints JSON. Progress goes to stderr (plain lines
+when it is not a terminal).
 """
+
+#: Exit status for a closed stdout: 128 + SIGPIPE, what a shell reports for a command killed by SIGPIPE.
+EXIT_BROKEN_PIPE = 141
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: the installed distribution's version, looked up only when asked (keeps --help fast)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS, **kwargs: object) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: object) -> None:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            v = version("robogest")
+        except PackageNotFoundError:  # run from a source tree that was never installed
+            v = "unknown (not installed)"
+        print(f"robogest {v}")
+        parser.exit()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -40,6 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    parser.add_argument("--version", action=_VersionAction, help="print the installed version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in _MODULES:
         try:
@@ -52,14 +85,56 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _quiet_stdout() -> None:
+    """After a closed pipe: point stdout at /dev/null so the interpreter's final flush cannot fail again.
+
+    The standard recipe (Python docs, "Note on SIGPIPE" in the signal module).
+    """
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError, io.UnsupportedOperation):  # stdout replaced (tests), or closed
+        pass
+
+
+def _one_line_warnings(show: Callable[..., None]) -> Callable[..., None]:
+    """``warnings.showwarning`` printing robogest's own warnings as one ``robogest: warning: ...`` line."""
+
+    def show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+        from robogest.errors import RobogestWarning
+
+        if issubclass(category, RobogestWarning):
+            print(f"robogest: warning: {message}", file=sys.stderr if file is None else file)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    return show_warning
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    previous = warnings.showwarning
+    warnings.showwarning = _one_line_warnings(previous)
+    if not sys.stdout.isatty() and isinstance(sys.stdout, io.TextIOWrapper):
+        sys.stdout.reconfigure(line_buffering=True)  # a pipe sees each line when it is printed
+    try:
+        return _run(argv)
+    except BrokenPipeError:
+        _quiet_stdout()
+        return EXIT_BROKEN_PIPE
+    finally:
+        warnings.showwarning = previous
+
+
+def _run(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        rc = int(args.func(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, inside the handler in main, not at interpreter exit
+        return rc
     except RobogestError as e:
         print(f"robogest: error: {e}", file=sys.stderr)
         return e.exit_code

@@ -28,11 +28,19 @@ the robot is sent to rest and torque is turned off.
 def _add_output_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robot", default=DEFAULT_ROBOT, help="robot name from `robogest robots list`, or a YAML path "
                    "(default: %(default)s)")  # fmt: skip
-    p.add_argument("--backend", default="sim", help="sim (MuJoCo, default), dynamixel or feetech")
+    p.add_argument(
+        "--backend", default="sim", help="sim (MuJoCo, default), dynamixel, feetech, or an installed plugin's backend"
+    )
     p.add_argument("--port", help="serial port for dynamixel/feetech (default: the robot YAML's bus.port)")
     p.add_argument("--baud", type=checks.baud, help="baud rate (default: the robot YAML's bus.baudrate)")
     p.add_argument("--fps", type=checks.rate_hz, default=50.0, help="command rate, 1..1000 Hz (default: %(default)s)")
     p.add_argument("--save", metavar="FILE.npz", help="write the final command trajectory (and the audio as .wav)")
+    p.add_argument(
+        "--export",
+        metavar="FILE",
+        help="also write the command trajectory for other tools: FILE.mcap (ROS 2 bag), FILE.csv, or a "
+        "name without suffix (ROS 2 bag folder); times on the speech audio's clock",
+    )
     p.add_argument("--video", metavar="FILE.mp4", help="render the simulated robot with the speech audio (sim)")
     p.add_argument("--plot", metavar="FILE.png", help="plot wrist trajectories, beats, silent spans, joint commands")
     p.add_argument("--realtime", action="store_true", help="run the simulation in real time (sim)")
@@ -49,7 +57,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_speech_args(p)
-    p.add_argument("--generator", default="rhythm", help="gesture generator (default: %(default)s)")
+    p.add_argument(
+        "--generator",
+        default="rhythm",
+        help="gesture generator: rhythm, gesticulator, rhythmic, s2ag, or an installed plugin's (default: %(default)s)",
+    )
     p.add_argument("--checkpoint", metavar="FILE", help="trained weights for a learned generator")
     p.add_argument(
         "--seed", type=checks.seed, default=0, help="random seed, 0..2**32-1; same input + seed = same motion"
@@ -72,6 +84,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _check_paths(args: argparse.Namespace, inputs: dict[str, str | None]) -> None:
     """Refuse bad output paths before any work (see :func:`robogest.cli.checks.check_outputs`)."""
     outputs = {"--save": args.save, "--video": args.video, "--plot": args.plot}
+    if args.export and Path(args.export).suffix:  # a file (.mcap, .csv); a bag folder is check_export's to judge
+        outputs["--export"] = args.export
     if args.save and getattr(args, "text", None) is not None:  # synthesized speech is saved beside --save
         outputs["--save's audio"] = str(Path(args.save).with_suffix(".wav"))
     robot_file = args.robot if os.path.isfile(args.robot) else None
@@ -87,12 +101,23 @@ def _report(result_lines: list[str]) -> None:
         print(line)
 
 
-def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr: int) -> list[str]:
-    """Save, then play on the chosen backend; returns report lines."""
-    lines = []
+def _check_export(args: argparse.Namespace) -> None:
+    """A bad --export (name, existing folder, rosbags missing) fails before anything is computed or moves."""
+    if args.export:
+        from robogest.trajectory.export import check_export
+
+        check_export(args.export)
+
+
+def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr: int) -> None:
+    """Save, export, then play on the chosen backend, printing each result as soon as it is known."""
     if args.save:
         traj.save(args.save)
-        lines.append(f"trajectory: {args.save} ({traj.n_frames} frames at {traj.fps:g} Hz, {traj.duration_s:.2f} s)")
+        print(f"trajectory: {args.save} ({traj.n_frames} frames at {traj.fps:g} Hz, {traj.duration_s:.2f} s)")
+    if args.export:
+        from robogest.trajectory.export import export_trajectory
+
+        print(f"exported: {export_trajectory(traj, args.export)}")
     if args.backend == "sim":
         from robogest.backends.mujoco_sim import simulate
 
@@ -101,11 +126,9 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
                 traj, robot, video_path=args.video, audio=audio, audio_sr=sr, realtime=args.realtime,
                 view=args.view, progress=cb,
             )  # fmt: skip
-        lines.append(
-            f"sim tracking error: RMS {rep.tracking_rms_deg_overall:.2f} deg, max {rep.max_abs_error_deg:.2f} deg"
-        )
+        print(f"sim tracking error: RMS {rep.tracking_rms_deg_overall:.2f} deg, max {rep.max_abs_error_deg:.2f} deg")
         if args.video:
-            lines.append(f"video: {args.video}")
+            print(f"video: {args.video}")
     else:
         from robogest.backends import get_backend_factory
         from robogest.backends.player import play
@@ -113,11 +136,10 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
         backend = get_backend_factory(args.backend)(robot, **_backend_options(args))
         with progress_bar("playing") as cb:
             rep = play(traj, backend, rate_hz=args.fps, audio=audio, audio_sr=sr, progress=cb)
-        lines.append(
+        print(
             f"played {rep.n_ticks} ticks; period p50 {rep.p50_period_ms:.2f} ms, p99 {rep.p99_period_ms:.2f} ms, "
             f"late ticks {rep.late_ticks}, bus retries {rep.retries}, missed reads {rep.missed_reads}"
         )
-    return lines
 
 
 def run_speak(args: argparse.Namespace) -> int:
@@ -128,6 +150,7 @@ def run_speak(args: argparse.Namespace) -> int:
     if args.checkpoint and args.generator == "rhythm":
         raise InputError("--checkpoint is for learned generators; the default 'rhythm' generator needs none")
     _check_paths(args, {**speech_inputs(args), "--checkpoint": args.checkpoint})
+    _check_export(args)
     robot = find_robot(args.robot)
     speech = speech_from_args(args)
     opts = {"checkpoint": args.checkpoint} if args.checkpoint else {}
@@ -146,8 +169,8 @@ def run_speak(args: argparse.Namespace) -> int:
 
         plot_motion(args.plot, result.motion, speech, traj)
         lines.append(f"plot: {args.plot}")
-    lines += _finish(args, robot, traj, speech.audio, speech.sr)
-    _report(lines)
+    _report(lines)  # before the (long) playback, so a pipe or log sees it at once
+    _finish(args, robot, traj, speech.audio, speech.sr)
     return 0
 
 
@@ -157,12 +180,13 @@ def run_play(args: argparse.Namespace) -> int:
     from robogest.pipeline import motion_to_trajectory
     from robogest.robot import find_robot
     from robogest.safety import check_limits
-    from robogest.trajectory import Trajectory
+    from robogest.trajectory import Trajectory, check_matches
 
     path = Path(args.motion)
     if not path.is_file():
         raise InputError(f"{path}: no such motion file")
     _check_paths(args, {"MOTION": args.motion, "--audio": args.audio})
+    _check_export(args)
     robot = find_robot(args.robot)
     audio, sr = None, 16000
     if args.audio:
@@ -173,12 +197,7 @@ def run_play(args: argparse.Namespace) -> int:
     is_traj = path.suffix == ".npz" and "q_rad" in npz_keys(path)
     if is_traj:
         traj = Trajectory.load(path)
-        if traj.joint_names != robot.joint_names:
-            made_for = traj.robot or "unknown"
-            raise InputError(
-                f"{path}: trajectory is for joints {traj.joint_names}, robot {robot.name} has "
-                f"{robot.joint_names}; pass the --robot it was made for ({made_for})"
-            )
+        check_matches(traj, robot, str(path))  # joints, limits and rest pose must be the robot's
         from robogest.errors import SafetyError
         from robogest.safety import JointLimits
 
@@ -193,6 +212,6 @@ def run_play(args: argparse.Namespace) -> int:
         motion = load_motion(path)
         traj, _, _ = motion_to_trajectory(motion, robot, fps=args.fps, audio_path=args.audio or "")
     lines = [f"motion: {path} -> {traj.n_frames} commands at {traj.fps:g} Hz for {robot.name}"]
-    lines += _finish(args, robot, traj, audio, sr)
     _report(lines)
+    _finish(args, robot, traj, audio, sr)
     return 0

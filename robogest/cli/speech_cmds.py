@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from robogest.cli import checks
-from robogest.cli.common import add_speech_args, speech_from_args, speech_inputs
+from robogest.cli.common import add_json_flag, add_speech_args, print_json, speech_from_args, speech_inputs
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,7 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("audio_file", nargs="?", metavar="AUDIO", help="audio file (or use --text)")
     add_speech_args(p, text_positional=False)
     p.add_argument("--save-features", metavar="FILE.npz", help="write mel, MFCC, RMS, pitch, word features, beats")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    add_json_flag(p)
     p.set_defaults(func=run_analyze)
 
     g = sub.add_parser(
@@ -30,7 +29,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_speech_args(g, text_positional=False)
     g.add_argument("--out", required=True, metavar="FILE.bvh", help="motion file to write")
-    g.add_argument("--generator", default="rhythm", help="gesture generator (default: %(default)s)")
+    g.add_argument(
+        "--generator",
+        default="rhythm",
+        help="gesture generator: rhythm, gesticulator, rhythmic, s2ag, or an installed plugin's (default: %(default)s)",
+    )
     g.add_argument(
         "--seed", type=checks.seed, default=0, help="random seed, 0..2**32-1; same input + seed = same motion"
     )
@@ -48,13 +51,14 @@ def run_analyze(args: argparse.Namespace) -> int:
     checks.check_outputs({"--save-features": args.save_features}, speech_inputs(args))
     speech = speech_from_args(args)
     summary = speech_summary(speech)
-    if args.json:
-        print(json.dumps(summary, indent=2, default=float))
-    else:
-        for k, v in summary.items():
-            print(f"{k:>24}: {v}")
     if args.save_features:
         save_features(speech, args.save_features)
+    if args.json:
+        print_json({**summary, "features_file": args.save_features})
+        return 0
+    for k, v in summary.items():
+        print(f"{k:>24}: {v}")
+    if args.save_features:
         print(f"features written to {args.save_features}")
     return 0
 

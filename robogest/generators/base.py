@@ -25,8 +25,9 @@ class Generator(ABC):
 
 
 GeneratorFactory = Callable[..., Generator]
-#: Generators by name; factories take the generator's own keyword options (e.g. ``checkpoint``).
-GENERATORS: Registry[GeneratorFactory] = Registry("generator")
+#: Generators by name; factories take the generator's own keyword options (e.g. ``checkpoint``). Installed
+#: packages add more through the ``robogest.generators`` entry-point group.
+GENERATORS: Registry[GeneratorFactory] = Registry("generator", entry_point_group="robogest.generators")
 register_generator = GENERATORS.register
 generator_names = GENERATORS.names
 

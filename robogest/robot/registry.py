@@ -1,4 +1,12 @@
-"""Find robot YAMLs by name: ``$ROBOGEST_ROBOTS`` (os.pathsep-separated) first, then the repo's ``robots/``."""
+"""Find robot YAMLs by name along a documented search path.
+
+Search order (the first folder holding ``NAME.yaml`` wins on a name clash):
+
+1. ``--robot PATH.yaml``: a path is loaded as is, no search;
+2. ``$ROBOGEST_ROBOTS``: one or more folders (``os.pathsep``-separated), in the order given;
+3. ``./robots/`` in the current directory;
+4. the robots packaged with robogest (:func:`robots_dir`).
+"""
 
 from __future__ import annotations
 
@@ -13,19 +21,28 @@ DEFAULT_ROBOT = "humanoid_xl430"
 
 
 def robots_dir() -> Path:
-    """The ``robots/`` folder shipped beside the package."""
-    return Path(__file__).resolve().parents[2] / "robots"
+    """The shipped robot YAMLs: inside the installed package, or the checkout's ``robots/`` when run from source.
+
+    The wheel carries the repository's ``robots/`` and ``sim/`` as ``robogest/_assets/`` (see ``setup.py``);
+    a source checkout (editable install, PYTHONPATH) has no ``_assets`` and keeps them beside the package.
+    """
+    from importlib.resources import files
+
+    package = Path(str(files("robogest")))
+    installed = package / "_assets" / "robots"
+    return installed if installed.is_dir() else package.parent / "robots"
 
 
-def _search_path() -> list[Path]:
+def search_path() -> list[Path]:
+    """Folders searched for ``NAME.yaml``, first match winning (the module docstring gives the order)."""
     extra = [Path(p) for p in os.environ.get("ROBOGEST_ROBOTS", "").split(os.pathsep) if p]
-    return [*extra, robots_dir()]
+    return [*extra, Path.cwd() / "robots", robots_dir()]
 
 
 def list_robots() -> dict[str, Path]:
     """Robot name -> YAML path, earlier folders winning."""
     found: dict[str, Path] = {}
-    for d in _search_path():
+    for d in search_path():
         for f in sorted(d.glob("*.yaml")) if d.is_dir() else []:
             found.setdefault(f.stem, f)
     return found
@@ -39,5 +56,9 @@ def find_robot(name_or_path: str) -> RobotConfig:
     robots = list_robots()
     if name_or_path not in robots:
         known = ", ".join(sorted(robots)) or "(none found)"
-        raise ConfigError(f"unknown robot {name_or_path!r}; known robots: {known} (or pass a path to a YAML file)")
+        searched = ", ".join(str(d) for d in search_path())
+        raise ConfigError(
+            f"unknown robot {name_or_path!r}; known robots: {known} (searched {searched}; "
+            "or pass a path to a YAML file)"
+        )
     return load_robot_config(robots[name_or_path])

@@ -13,7 +13,12 @@ from robogest.cli.main import main
 from robogest.robot import find_robot
 from robogest.virtualbus import VirtualBus
 
-CASES = [("humanoid_xl430", "dynamixel"), ("humanoid_sts3215", "feetech"), ("desk_arm_sts3215", "feetech")]
+CASES = [
+    ("humanoid_xl430", "dynamixel"),
+    ("humanoid_sts3215", "feetech"),
+    ("desk_arm_sts3215", "feetech"),
+    ("so101_sts3215", "feetech"),
+]
 
 
 @pytest.fixture(autouse=True)
