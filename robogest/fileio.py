@@ -89,11 +89,16 @@ def write_error(path: str | os.PathLike, exc: OSError) -> RobogestError:
 
 def publish(tmp: Path, path: Path) -> None:
     """Give a finished temporary file ordinary permissions (0666 minus the umask; mkstemp makes 0600) and
-    move it over ``path`` atomically. For writers that cannot live inside :func:`atomic_path`."""
+    move it over ``path`` atomically. For writers that cannot live inside :func:`atomic_path`.
+
+    ``path`` is checked again (:func:`check_output_path`) as the last line of defence: a folder, device node,
+    FIFO or socket is never replaced, and a symlink is written through.
+    """
+    real = check_output_path(path)
     mask = os.umask(0)
     os.umask(mask)
     os.chmod(tmp, 0o666 & ~mask)
-    os.replace(tmp, path)
+    os.replace(tmp, real)
 
 
 @contextmanager

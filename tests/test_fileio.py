@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from robogest.errors import InputError, RobogestError
-from robogest.fileio import atomic_path, check_output_path, read_npz
+from robogest.fileio import atomic_path, check_output_path, publish, read_npz
 
 
 def test_atomic_path_publishes_with_ordinary_permissions(tmp_path):
@@ -117,3 +117,13 @@ def test_checkpoint_on_a_full_disk(full_disk):
     with pytest.raises(RobogestError, match=r"c\.pt: cannot write \(No space left on device\)"):
         save_checkpoint({"w": torch.zeros(100_000)}, full_disk / "c.pt")
     assert sorted(p.name for p in full_disk.iterdir()) == ["filler"]
+
+
+def test_publish_never_replaces_a_fifo(tmp_path):
+    fifo = tmp_path / "p"
+    os.mkfifo(fifo)
+    tmp = tmp_path / "t"
+    tmp.write_text("x")
+    with pytest.raises(InputError, match="FIFO"):
+        publish(tmp, fifo)
+    assert stat.S_ISFIFO(fifo.stat().st_mode)

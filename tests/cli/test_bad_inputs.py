@@ -26,7 +26,7 @@ import soundfile as sf
 from robogest.cli.main import main
 from robogest.motion import HumanMotion, save_bvh
 from robogest.robot import find_robot
-from tests.conftest import fill_up, mount_tmpfs
+from tests.conftest import REPO, fill_up, mount_tmpfs
 
 ROBOT = "humanoid_xl430"
 
@@ -126,6 +126,13 @@ def null_device(d: Path) -> None:
         os.mknod(d / "null", 0o666 | stat.S_IFCHR, os.makedev(1, 3))
     except PermissionError:
         pytest.skip("cannot make a device node here (not root); the FIFO rows cover special files")
+
+
+def robot_copy(d: Path) -> None:
+    """A copy of ROBOT's YAML in ``d/robots`` (its model through ``d/sim``), so no row can touch the repo's files."""
+    (d / "robots").mkdir()
+    (d / "robots" / f"{ROBOT}.yaml").write_bytes((REPO / "robots" / f"{ROBOT}.yaml").read_bytes())
+    (d / "sim").symlink_to(REPO / "sim")
 
 
 def folder(name: str) -> Callable[[Path], None]:
@@ -293,6 +300,12 @@ CASES = [
          r"--render null: is a device"),
     Case("virtual-bus-record-is-folder", ["virtual-bus", "--robot", ROBOT, "--record", "d"], folder("d"), 2,
          r"--record d: is a folder"),
+    Case("import-urdf-out-is-urdf", ["robots", "import-urdf", "a.urdf", "--out", "a.urdf", "--force"],
+         text("a.urdf", "<robot name='a'/>"), 2, r"--out a\.urdf is the same file as the input URDF a\.urdf"),
+    Case("lerobot-calibration-out-is-robot-yaml", ["robots", "import-lerobot-calibration", "c.json", "--robot",
+         f"robots/{ROBOT}.yaml", "--out", f"robots/{ROBOT}.yaml", "--force"],
+         all_of(text("c.json", "{}"), robot_copy), 2,
+         r"--out robots/humanoid_xl430\.yaml is the same file as the input --robot"),
     Case("train-out-is-file", ["train", "--data", "d", "--out", "f"], all_of(folder("d"), text("f", "x")), 2,
          r"--out f: is a file, not a folder"),
     # --- a write that fails half-way (disk full): one line, exit 1, nothing left behind
