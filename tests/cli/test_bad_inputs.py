@@ -382,6 +382,10 @@ CASES = [
          r"w\.json: .*(nested too deeply|invalid JSON)"),
     Case("eval-audio-rate-absurd", ["eval", "--pred", "t.npz", "--audio", "a.wav"], all_of(traj(), wav(sr=1000)), 2,
          r"a\.wav: sample rate 1000 Hz is outside"),
+    Case("robot-yaml-deep", ["play", "t.npz", "--robot", "r.yaml"], all_of(traj(), text("r.yaml", "[" * 100_000)),
+         3, r"r\.yaml: (YAML nested too deeply|not valid YAML)"),
+    Case("lerobot-calibration-deep-json", ["robots", "import-lerobot-calibration", "c.json", "--robot", ROBOT],
+         text("c.json", "[" * 100_000 + "]" * 100_000), 2, r"c\.json: JSON nested too deeply"),
     Case("audio-rate-absurd", ["analyze", "a.wav"], wav(sr=1000), 2, r"audio a\.wav: sample rate 1000 Hz is outside"),
     # --- checkpoints
     Case("checkpoint-legacy-format", ["speak", "Hi", "--generator", "gesticulator", "--checkpoint", "c.pt"],
