@@ -49,6 +49,8 @@ def run_analyze(args: argparse.Namespace) -> int:
         raise InputError("give the audio file once: either as AUDIO or as --audio")
     args.audio = args.audio or args.audio_file
     checks.check_outputs({"--save-features": args.save_features}, speech_inputs(args))
+    if args.save_features and not Path(args.save_features).parent.is_dir():  # save_features creates no folders
+        raise InputError(f"--save-features {args.save_features}: the folder does not exist; create it first")
     speech = speech_from_args(args)
     summary = speech_summary(speech)
     if args.save_features:

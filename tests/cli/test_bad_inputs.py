@@ -278,6 +278,8 @@ CASES = [
     Case("play-save-symlink-to-dev-null", ["play", "t.npz", *A, "--save", "n.npz"],
          all_of(traj(), null_device, symlink("n.npz", "null")), 2,
          r"--save n\.npz: is a device, FIFO or socket \(via the symlink"),
+    Case("analyze-features-folder-missing", ["analyze", "a.wav", "--save-features", "no/f.npz"], wav(), 2,
+         r"--save-features no/f\.npz: the folder does not exist"),
     Case("analyze-features-dev-null", ["analyze", "a.wav", "--save-features", "null"], all_of(wav(), null_device), 2,
          r"--save-features null: is a device"),
     Case("generate-out-fifo", ["generate", "--audio", "a.wav", "--out", "p.bvh"], all_of(wav(), fifo("p.bvh")), 2,
