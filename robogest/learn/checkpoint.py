@@ -90,7 +90,7 @@ def load_checkpoint(path: str | os.PathLike, map_location: str = "cpu") -> dict[
     # The zip format stores each tensor as a record whose length PyTorch checks against the declared size; the
     # legacy format allocates whatever the file declares before reading, so it is refused.
     if not zipfile.is_zipfile(path):
-        raise InputError(f"{path}: not a robogest checkpoint (not PyTorch's zip format; re-save it with torch.save)")
+        raise InputError(f"{path}: not a readable checkpoint (not PyTorch's zip format: legacy or corrupt; re-save it)")
     try:
         ckpt = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as e:  # torch raises many types for corrupt files

@@ -391,7 +391,7 @@ CASES = [
     Case("audio-rate-absurd", ["analyze", "a.wav"], wav(sr=1000), 2, r"audio a\.wav: sample rate 1000 Hz is outside"),
     # --- checkpoints
     Case("checkpoint-legacy-format", ["speak", "Hi", "--generator", "gesticulator", "--checkpoint", "c.pt"],
-         lambda d: _legacy_checkpoint(d / "c.pt"), 2, r"c\.pt: not a robogest checkpoint \(not PyTorch's zip format",
+         lambda d: _legacy_checkpoint(d / "c.pt"), 2, r"c\.pt: not a readable checkpoint \(not PyTorch's zip format",
          needs=("torch",)),
     Case("checkpoint-declares-160GB", ["speak", "Hi", "--generator", "gesticulator", "--checkpoint", "c.pt"],
          lambda d: _crafted_checkpoint(d / "c.pt", 40_000_000_000), 2,
