@@ -95,7 +95,7 @@ class Trajectory:
         """Read a file written by :meth:`save`, refusing anything that could not have come from it.
 
         Refused with one :class:`InputError` line naming the file: pickled objects, text where numbers belong,
-        shapes that do not match ``q_rad``'s ``(T, J)``, NaN/inf anywhere, time stamps that do not start at 0,
+        shapes that do not match ``q_rad``'s ``(T, J)``, time stamps that are not finite, do not start at 0,
         do not increase by one fixed step, imply a rate outside :data:`FPS_RANGE_HZ` or last longer than
         :data:`MAX_DURATION_S` (a play that would run for ever).
         """
@@ -113,7 +113,7 @@ class Trajectory:
             raise InputError(f"{path}: joint_names must be {j} strings (one per q_rad column), got {names.dtype} "
                              f"{names.shape}")  # fmt: skip
         kw = {k: _numbers(z, k, (j,), path) for k in _ARRAY_KEYS[2:7]}
-        t = _numbers(z, "t_s", (n,), path)
+        t = _numbers(z, "t_s", (n,), path, finite=True)
         check_time_stamps(t, path)
         silent = _numbers(z, "silent", (n,), path)
         text = {}
@@ -131,8 +131,14 @@ MAX_DURATION_S = 24 * 3600.0
 FPS_RANGE_HZ = (1.0, 1000.0)
 
 
-def _numbers(z: dict[str, np.ndarray], key: str, shape: tuple[int, ...] | None, path: Path) -> np.ndarray:
-    """``z[key]`` as finite float64 (bool stays bool) of ``shape`` (None: any), or an InputError naming the key."""
+def _numbers(
+    z: dict[str, np.ndarray], key: str, shape: tuple[int, ...] | None, path: Path, finite: bool = False
+) -> np.ndarray:
+    """``z[key]`` as float64 (bool stays bool) of ``shape`` (None: any), or an InputError naming the key.
+
+    Only ``finite`` arrays are checked for NaN/inf here; commands and limits are judged against the robot by
+    :func:`check_matches`, which names the joint and sample.
+    """
     a = z[key]
     if a.dtype.kind not in "biuf":
         raise InputError(f"{path}: {key} holds {a.dtype} values, not numbers; not a robogest trajectory")
@@ -141,7 +147,7 @@ def _numbers(z: dict[str, np.ndarray], key: str, shape: tuple[int, ...] | None, 
     if a.dtype.kind == "b":
         return a.copy()
     a = a.astype(np.float64)
-    if not np.isfinite(a).all():
+    if finite and not np.isfinite(a).all():
         k = int(np.flatnonzero(~np.isfinite(a.reshape(-1)))[0])
         raise InputError(f"{path}: {key} holds NaN or inf (first at flat index {k}); the file is corrupt")
     return a
