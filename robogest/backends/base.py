@@ -196,6 +196,25 @@ class Backend(ABC):
     def disconnect(self) -> None:
         """Release the port/simulator; must be safe to call twice."""
 
+    def shape_target(self, q_target_rad: np.ndarray, rest_q_rad: np.ndarray) -> np.ndarray:
+        """Hook for a health governor, called by the player on every target before limiting.
+
+        Parameters
+        ----------
+        q_target_rad, rest_q_rad : ndarray [shape=(J,)], radians
+
+        Returns
+        -------
+        ndarray [shape=(J,)], radians
+            The target to command; default: unchanged. Servo backends scale the deviation from rest
+            down as the servos heat up (:mod:`robogest.backends.governor`).
+        """
+        return np.asarray(q_target_rad, float)
+
+    def governor_state(self) -> dict[str, float]:
+        """What the health governor is doing (empty when the backend has none)."""
+        return {}
+
     def advance(self, dt_s: float) -> None:  # noqa: B027 - optional hook
         """Advance simulated time; hardware ignores it (the player waits on the clock instead)."""
 

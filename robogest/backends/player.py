@@ -217,7 +217,7 @@ def play(
                 if now - due > 0.5 * period:
                     report.late_ticks += 1
                 starts.append(now)
-            q = np.clip(sample(t_traj), lo, hi)
+            q = np.clip(backend.shape_target(sample(t_traj), robot.rest_q_rad), lo, hi)
             last = backend.last_goal_rad
             if last is not None:  # after a late tick, catch up at the velocity limit instead of jumping
                 q = last + np.clip(q - last, -step_max, step_max)
