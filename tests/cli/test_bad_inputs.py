@@ -308,6 +308,8 @@ CASES = [
          f"robots/{ROBOT}.yaml", "--out", f"robots/{ROBOT}.yaml", "--force"],
          all_of(text("c.json", "{}"), robot_copy), 2,
          r"--out robots/humanoid_xl430\.yaml is the same file as the input --robot"),
+    Case("servo-calibrate-out-is-folder", ["servo", "calibrate", "--robot", f"robots/{ROBOT}.yaml", "--port", "nope",
+         "--out", "d"], all_of(robot_copy, folder("d")), 2, r"--out d: is a folder"),
     Case("train-out-is-file", ["train", "--data", "d", "--out", "f"], all_of(folder("d"), text("f", "x")), 2,
          r"--out f: is a file, not a folder"),
     # --- a write that fails half-way (disk full): one line, exit 1, nothing left behind
