@@ -84,6 +84,11 @@ def generator_options(args: argparse.Namespace) -> dict:
     return opts
 
 
+def speech_inputs(args: argparse.Namespace) -> dict[str, str | None]:
+    """The files :func:`speech_from_args` reads, by flag, for :func:`robogest.cli.checks.check_outputs`."""
+    return {"--audio": args.audio, "--transcript": args.transcript}
+
+
 def speech_from_args(args: argparse.Namespace) -> Speech:
     from robogest.pipeline import load_speech_input
 

@@ -12,7 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from robogest.cli import checks
 from robogest.errors import InputError, MissingDependencyError, RobogestError
+from robogest.fileio import npz_keys
 
 MOTION_SUFFIXES = (".bvh", ".npz")
 AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".mp3")
@@ -36,7 +38,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--json", metavar="FILE", help="write all metrics as JSON (atomically)")
     p.add_argument("--plots", metavar="DIR", help="write velocity histograms, PMB curves, trajectory plots")
     p.add_argument(
-        "--shifts", type=int, default=100, help="circular shifts for chance-corrected beat scores (default 100)"
+        "--shifts",
+        type=checks.number(2, 100_000, integer=True),
+        default=100,
+        help="circular shifts for chance-corrected beat scores, 2..100000 (default 100)",
     )
     p.add_argument(
         "--sim",
@@ -75,13 +80,10 @@ def _match(pred: Path, others: list[Path] | None, single: bool, what: str) -> Pa
 def load_input(path: Path):
     """``("trajectory", Trajectory)`` or ``("motion", HumanMotion)``; InputError naming the file otherwise."""
     try:
-        if path.suffix.lower() == ".npz":
-            with np.load(path, allow_pickle=False) as z:
-                is_traj = "q_rad" in z.files
-            if is_traj:
-                from robogest.trajectory.types import Trajectory
+        if path.suffix.lower() == ".npz" and "q_rad" in npz_keys(path):
+            from robogest.trajectory.types import Trajectory
 
-                return "trajectory", Trajectory.load(path)
+            return "trajectory", Trajectory.load(path)
         try:
             from robogest.motion import load_motion
         except ImportError:
@@ -234,8 +236,11 @@ def run_eval(args: argparse.Namespace) -> int:
     gt_files = _files(Path(args.gt), MOTION_SUFFIXES, "ground truth") if args.gt else None
     audio_files = _files(Path(args.audio), AUDIO_SUFFIXES, "audio") if args.audio else None
     tr_files = _files(Path(args.transcript), TRANSCRIPT_SUFFIXES, "transcript") if args.transcript else None
-    if args.shifts < 2:
-        raise InputError(f"--shifts must be at least 2, got {args.shifts}")
+    checks.check_outputs(
+        {"--json": args.json},
+        {"--pred": pred_files, "--gt": gt_files, "--audio": audio_files, "--transcript": tr_files},
+        folders={"--plots": args.plots},
+    )
     results: dict[str, dict] = {}
     for pf in pred_files:
         gf = _match(pf, gt_files, single, "ground truth")

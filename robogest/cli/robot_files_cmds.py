@@ -59,8 +59,10 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_import_urdf(args: argparse.Namespace) -> int:
+    from robogest.cli.checks import check_outputs
     from robogest.robot.urdf_import import import_urdf
 
+    check_outputs({"--out": args.out}, {"URDF": args.urdf})
     res = import_urdf(args.urdf, args.out, name=args.name, overwrite=args.force)
     print(f"wrote {res.yaml_path}, {res.mjcf_path}, {res.scene_path}")
     print("guessed (edit the YAML and the MJCF to change it):")
@@ -70,10 +72,13 @@ def cmd_import_urdf(args: argparse.Namespace) -> int:
 
 
 def cmd_import_lerobot_calibration(args: argparse.Namespace) -> int:
+    from robogest.cli.checks import check_outputs
     from robogest.robot.lerobot_calibration import import_lerobot_calibration
     from robogest.robot.registry import find_robot
 
-    res = import_lerobot_calibration(args.calibration, find_robot(args.robot), args.out, overwrite=args.force)
+    robot = find_robot(args.robot)
+    check_outputs({"--out": args.out}, {"CALIBRATION": args.calibration, "--robot": robot.path})
+    res = import_lerobot_calibration(args.calibration, robot, args.out, overwrite=args.force)
     print(f"wrote {res.path} (the original is unchanged)")
     for c in res.changes:
         print(f"  - {c}")

@@ -84,6 +84,8 @@ def _ask(prompt: str, sample: Any = None) -> None:
 def calibrate(args: argparse.Namespace) -> int:
     import yaml
 
+    from robogest.cli.checks import check_outputs
+    from robogest.fileio import atomic_path
     from robogest.robot.config import load_robot_config
 
     robot, backend = _robot_backend(args.robot, args.port, check_limits=False)
@@ -93,6 +95,7 @@ def calibrate(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else src.with_name(f"{src.stem}.calibrated.yaml")
     if out.resolve() == src.resolve():
         raise InputError(f"--out {out} is the robot's own YAML; calibration writes a copy, never over the original")
+    check_outputs({"--out": out}, {"--robot": src})  # before anything moves: a folder, device, unwritable path
     joints = args.joint or robot.joint_names
     for j in joints:
         _joint_index(robot, j)
@@ -137,8 +140,8 @@ def calibrate(args: argparse.Namespace) -> int:
             servo["zero_offset_rad"], servo["direction"] = m["zero_offset_rad"], int(m["direction"])
     if out.parent.resolve() != src.parent.resolve():
         doc["model"] = str((src.parent / doc["model"]).resolve())  # keep the MJCF reachable from the copy
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(yaml.safe_dump(doc, sort_keys=False))
+    with atomic_path(out) as tmp:
+        tmp.write_text(yaml.safe_dump(doc, sort_keys=False))
     load_robot_config(out)  # the copy must load
     for j, m in measured.items():
         print(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -108,9 +109,11 @@ def register(subparsers: Any) -> None:
 
 # --- virtual-bus ---------------------------------------------------------------------------------
 def _virtual_bus(args: argparse.Namespace) -> int:
+    from robogest.cli.checks import check_outputs
     from robogest.robot.registry import find_robot
     from robogest.virtualbus import FaultSpec, VirtualBus
 
+    check_outputs({"--record": args.record}, {"--robot": args.robot if os.path.isfile(args.robot) else None})
     robot = find_robot(args.robot)
     rdt = None if args.return_delay_time < 0 else args.return_delay_time
     if rdt is not None and rdt > 254:

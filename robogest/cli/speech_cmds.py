@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from robogest.cli import checks
 from robogest.cli.common import (
     add_gesture_args,
     add_json_flag,
@@ -12,6 +13,7 @@ from robogest.cli.common import (
     generator_options,
     print_json,
     speech_from_args,
+    speech_inputs,
 )
 
 
@@ -40,7 +42,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="rhythm",
         help="gesture generator: rhythm, gesticulator, rhythmic, s2ag, or an installed plugin's (default: %(default)s)",
     )
-    g.add_argument("--seed", type=int, default=0, help="random seed; same input + seed = same motion")
+    g.add_argument(
+        "--seed", type=checks.seed, default=0, help="random seed, 0..2**32-1; same input + seed = same motion"
+    )
     add_gesture_args(g)
     g.add_argument("--plot", metavar="FILE.png", help="also plot wrist trajectories with beats and silent spans")
     g.set_defaults(func=run_generate)
@@ -53,6 +57,9 @@ def run_analyze(args: argparse.Namespace) -> int:
     if args.audio_file and args.audio:
         raise InputError("give the audio file once: either as AUDIO or as --audio")
     args.audio = args.audio or args.audio_file
+    checks.check_outputs({"--save-features": args.save_features}, speech_inputs(args))
+    if args.save_features and not Path(args.save_features).parent.is_dir():  # save_features creates no folders
+        raise InputError(f"--save-features {args.save_features}: the folder does not exist; create it first")
     speech = speech_from_args(args)
     summary = speech_summary(speech)
     if args.save_features:
@@ -71,6 +78,7 @@ def run_generate(args: argparse.Namespace) -> int:
     from robogest.generators import make_generator
     from robogest.motion import save_bvh
 
+    checks.check_outputs({"--out": args.out, "--plot": args.plot}, speech_inputs(args))
     speech = speech_from_args(args)
     motion = make_generator(args.generator, **generator_options(args)).generate(speech, seed=args.seed)
     save_bvh(motion, Path(args.out))

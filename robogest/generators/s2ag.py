@@ -46,7 +46,7 @@ from robogest.data.features import FeatureConfig, speech_inputs, text_encoder_fo
 from robogest.data.prep import slice_windows  # noqa: E402
 from robogest.errors import InputError  # noqa: E402
 from robogest.generators.base import Generator  # noqa: E402
-from robogest.learn.checkpoint import load_checkpoint  # noqa: E402
+from robogest.learn.checkpoint import build_model, load_checkpoint  # noqa: E402
 from robogest.motion import rotations as R  # noqa: E402
 from robogest.motion.human_motion import HumanMotion  # noqa: E402
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M  # noqa: E402
@@ -669,8 +669,7 @@ class S2AGGenerator(Generator):
         if ckpt["model_name"] != "s2ag":
             raise InputError(f"{checkpoint}: a {ckpt['model_name']!r} checkpoint, not an s2ag one")
         config = S2AGConfig.from_dict(ckpt["model_config"])
-        model = S2AGNet(config).to(torch.device(device))
-        model.load_state_dict(ckpt["model_state"])
+        model = build_model(ckpt, lambda: S2AGNet(config), checkpoint, device)
         self._setup(model, FeatureConfig.from_dict(ckpt["feature_config"]), speaker, encoder)
         self.path = Path(checkpoint)
 

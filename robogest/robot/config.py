@@ -181,6 +181,8 @@ def load_robot_config(path: str | Path) -> RobotConfig:
         raise ConfigError(f"{path}: cannot read robot file ({e.strerror})") from None
     except yaml.YAMLError as e:
         raise ConfigError(f"{path}: not valid YAML: {e}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: YAML nested too deeply to be a robot file") from None
     if not isinstance(raw, dict):
         raise ConfigError(f"{path}: expected a mapping with keys name, model, joints, retarget")
     try:

@@ -56,6 +56,8 @@ def read_calibration(path: str | Path) -> dict[str, MotorCalibration]:
         raise InputError(f"{path}: cannot read the calibration file ({e.strerror})") from None
     except json.JSONDecodeError as e:
         raise InputError(f"{path}: not JSON ({e.msg} at line {e.lineno}); pass a LeRobot calibration .json") from None
+    except RecursionError:
+        raise InputError(f"{path}: JSON nested too deeply to be a LeRobot calibration file") from None
     if not isinstance(raw, dict) or not raw:
         raise InputError(f"{path}: expected {{motor name: {{{', '.join(_FIELDS)}}}}} as LeRobot writes it")
     out = {}
