@@ -14,7 +14,7 @@ import av
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
 FRAMES = ((1.9, "stroke"), (2.9, "stroke"), (5.5, "pause, at rest"), (6.3, "next gesture"))
 
