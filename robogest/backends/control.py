@@ -291,6 +291,13 @@ class ControlLoop:
         """Loop time of the next tick, seconds (``rate_hz`` ticks per loop second; starts at 0)."""
         return self._k * self.period_s
 
+    def loop_s_at(self, monotonic_s: float) -> float:
+        """Loop time of a ``time.monotonic()`` instant (realtime loops: ticks are due at their loop time after
+        start), for ``play(start_at=loop.loop_s_at(t_mono))``."""
+        if not self.backend.realtime:
+            raise RuntimeError("a stepped (simulated) loop has no wall-clock time; give start_at in loop time")
+        return monotonic_s - self._wall0
+
     @property
     def goal_rad(self) -> np.ndarray:
         """Last goal sent ``(J,)``, radians."""
@@ -325,7 +332,8 @@ class ControlLoop:
         self._k = 0
 
     def play(self, trajectory: Trajectory, start_at: float | None = None) -> PlayHandle:
-        """Play ``trajectory`` from loop time ``start_at`` (default: now); returns at once.
+        """Play ``trajectory`` from loop time ``start_at`` (default: now; from a monotonic time: :meth:`loop_s_at`);
+        returns at once.
 
         It must match the robot definition (:func:`~robogest.trajectory.types.check_matches`: joints in the robot's
         order, its limits and rest). A trajectory already playing is replaced (its handle gets ``interrupted``); the
@@ -551,7 +559,7 @@ class ControlLoop:
         except RobogestError as e:
             return f"could not reach rest ({e})"
         if not rest.done:
-            return f"rest not reached within {REST_TIMEOUT_S:g} s"
+            return f"did not reach rest within {REST_TIMEOUT_S:g} s"
         self._settle()
         return None
 

@@ -179,7 +179,7 @@ def play(
                 _finish(report, backend, loop, wall0)
             if isinstance(interrupted, Interrupted):
                 interrupted.outcome = (
-                    f"the robot could not reach rest: {problem}; torque off attempted"
+                    f"the robot {problem}; torque off attempted"
                     if problem
                     else "the robot went to rest and torque is off"
                 )

@@ -344,10 +344,11 @@ def test_threaded_loop_plays_and_stamps_events_on_the_monotonic_clock():
     before = time.monotonic()
     loop.start()
     try:
-        h = loop.play(sine(robot, seconds=1.0))
+        at = time.monotonic() + 0.2
+        h = loop.play(sine(robot, seconds=1.0), start_at=loop.loop_s_at(at))
         assert h.wait(timeout_s=30.0) and h.completed
         ev = h.events
-        assert before <= ev["started"].monotonic_s <= ev["first_goal"].monotonic_s <= ev["done"].monotonic_s
+        assert before <= at <= ev["started"].monotonic_s <= ev["first_goal"].monotonic_s <= ev["done"].monotonic_s
         assert ev["done"].monotonic_s <= time.monotonic()
     finally:
         loop.close()

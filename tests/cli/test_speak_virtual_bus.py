@@ -141,7 +141,7 @@ def test_interrupt_when_the_bus_is_gone_says_rest_was_not_reached(monkeypatch, c
         assert not any(s.torque_on for s in bus.servos)
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 143 and len(err) == 1
-    assert err[0].startswith("robogest: interrupted by SIGTERM; the robot could not reach rest: ")
+    assert err[0].startswith("robogest: interrupted by SIGTERM; the robot could not reach rest (")
     assert "serial port lost" in err[0] and err[0].endswith("torque off attempted")
 
 
