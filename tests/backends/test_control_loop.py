@@ -387,3 +387,23 @@ def test_a_failing_backend_stops_the_threaded_loop_and_says_why():
         h.wait(timeout_s=30.0)
     assert "could not reach rest" in (loop.close() or "")
     assert not b.torque and not b.is_connected
+
+
+def test_jerk_limits_come_from_the_yaml_or_the_default_rule(tmp_path):
+    import yaml
+
+    from robogest.errors import ConfigError
+    from robogest.robot.config import load_robot_config
+
+    default = make_robot([-1.0], [1.0], [3.0], [15.0], [0.0])
+    assert default.j_max_rad_s3 == pytest.approx([15.0 / 0.05])  # the acceleration limit reached in 50 ms
+    explicit = make_robot([-1.0], [1.0], [3.0], [15.0], [0.0], j_max=[120.0])
+    assert explicit.j_max_rad_s3 == pytest.approx([120.0])
+    doc = {
+        "name": "x", "model": "x.xml", "retarget": [{"human": ["r_shoulder", "r_elbow"], "robot": ["a", "b"]}],
+        "joints": [{"name": "j", "lower_rad": -1, "upper_rad": 1, "max_velocity_rad_s": 1,
+                    "max_acceleration_rad_s2": 1, "max_jerk_rad_s3": -5}],
+    }  # fmt: skip
+    (tmp_path / "x.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(ConfigError, match=r"joints\[0\]\.max_jerk_rad_s3"):
+        load_robot_config(tmp_path / "x.yaml")
