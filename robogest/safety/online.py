@@ -63,6 +63,9 @@ class MotionState:
     a_rad_s2: np.ndarray
 
 
+#: Below this (rad, rad/s, rad/s²) a state is taken to have arrived on a still target: float rounding only.
+_ARRIVED_TOL = 1e-9
+
 class OnlineLimiter:
     """Per-joint position, velocity, acceleration and jerk limiter for one control loop.
 
@@ -237,7 +240,11 @@ class OnlineLimiter:
         if rel is None:
             return None
         t = self.period_s
-        return MotionState(rel.q_rad + goal + tv * t, rel.v_rad_s + tv, rel.a_rad_s2)
+        # Arrived (to float rounding) on a still target: land on it exactly, so "at rest" means equal to rest.
+        arrived = (tv == 0) & (np.abs(rel.q_rad) < _ARRIVED_TOL) & (np.abs(rel.v_rad_s) < _ARRIVED_TOL)
+        arrived &= np.abs(rel.a_rad_s2) < _ARRIVED_TOL
+        q = np.where(arrived, goal, rel.q_rad + goal + tv * t)
+        return MotionState(q, np.where(arrived, 0.0, rel.v_rad_s + tv), np.where(arrived, 0.0, rel.a_rad_s2))
 
     def _advance(self, inp: ruckig.InputParameter) -> MotionState | None:
         try:
