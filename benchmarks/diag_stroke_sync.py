@@ -9,7 +9,9 @@ Prints, for the shared take ``2_scott_0_1_1``:
    ``delta`` = 0.2): wrist-position speed (what :func:`robogest.eval.beats.stroke_sync` uses) in the world
    and in the chest frame (root and spine motion removed), and the angular speed of the shoulder + elbow
    rotations (no forward kinematics involved);
-3. the shifted-motion control for the best of these.
+3. the shifted-motion control for the best of these;
+4. a scan of the wrist stroke-sync z over motion offsets of -10..+10 s in 0.1 s steps (a body capture offset
+   from the face and audio would show as one offset with a high z).
 
 Run: ``PYTHONPATH=. .venv/bin/python benchmarks/diag_stroke_sync.py``.
 """
@@ -24,7 +26,7 @@ from scipy.ndimage import gaussian_filter1d
 from scipy.signal import find_peaks
 from scipy.spatial.transform import Rotation
 
-from robogest.eval.beats import ONSET_SR, audio_onsets, chance_corrected, stroke_hit_rate, stroke_peaks
+from robogest.eval.beats import ONSET_SR, audio_onsets, chance_corrected, stroke_hit_rate, stroke_peaks, stroke_sync
 from robogest.motion import load_motion
 from robogest.motion import rotations as R
 from robogest.speech import load_speech
@@ -105,6 +107,12 @@ def main() -> None:
     zs = np.array([score(np.sort((p + s) % dur), on)["z"] for s in np.arange(2.0, dur - 2.0, 1.0)])
     print(f"shoulder+elbow, shifted 2..{dur - 2:.0f} s in 1 s steps: |z| median {np.median(np.abs(zs)):.2f}, ", end="")
     print(f"max {np.abs(zs).max():.2f}, share > 1.5: {np.mean(np.abs(zs) > 1.5):.2f}")
+    w = m.positions()[:, wrists]
+    offs = np.arange(-100, 101) / 10.0
+    zo = np.array([stroke_sync(np.roll(w, round(o * fps), axis=0), fps, on, spans, n_shifts=40)["z"] for o in offs])
+    top = np.argsort(-zo)[:3]
+    best_offsets = ", ".join(f"{offs[i]:+.1f} s z {zo[i]:+.2f}" for i in top)
+    print(f"wrist stroke sync over offsets -10..+10 s (201 offsets): best {best_offsets}")
 
 
 if __name__ == "__main__":
