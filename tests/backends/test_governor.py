@@ -90,20 +90,21 @@ def test_shaping_never_makes_a_target_jump(temps, steps):
 
 
 def test_long_monologue_ends_cooler_with_the_governor(tmp_path):
-    """24 s of gestures played 4x faster, servos heating 80x faster than real (2 min time constant)."""
+    """8 s of gestures in real time (the limiter keeps the robot's speed limits, so a faster replay would not heat
+    more), servos heating 30x faster than real (2 min time constant)."""
     robot = make_robot(tmp_path, family="feetech", protocol=0.0, n_joints=2)
-    thermal = ThermalModel(rise_c_at_full_load=400.0, tau_s=120.0, time_scale=80.0)
+    thermal = ThermalModel(rise_c_at_full_load=1500.0, tau_s=120.0, time_scale=30.0)
     final, states = {}, {}
     for governed in (False, True):
         with VirtualBus(robot, thermal=thermal) as bus:
             backend = get_backend_factory("feetech")(
-                robot, port=bus.port, governor=governed, warn_temperature_c=45.0, max_temperature_c=80.0, health_hz=4
+                robot, port=bus.port, governor=governed, warn_temperature_c=33.0, max_temperature_c=80.0, health_hz=4
             )
-            report = play(monologue(robot, 24.0), backend, time_scale=4.0)
+            report = play(monologue(robot, 8.0), backend)
             assert report.completed, report.errors
             final[governed] = max(s.motion.temp_c for s in bus.servos)
             states[governed] = backend.governor_state()
-    assert final[True] < final[False] - 4.0, final  # measured: ~49 vs ~57.5 °C (benchmarks/bench_governor.py)
+    assert final[True] < final[False] - 4.0, final  # measured: ~45 vs ~55.5 °C through the ControlLoop
     assert states[False]["lowest_factor"] == 1.0
     assert states[True]["lowest_factor"] < 0.95 and states[True]["lengthened_rests"] >= 1
 
