@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from robogest.speech.types import Speech
+if TYPE_CHECKING:  # imported lazily: `robogest --help` must not load numpy
+    from robogest.speech.types import Speech
 
 
 def add_speech_args(p: argparse.ArgumentParser, text_positional: bool = True) -> None:

@@ -10,8 +10,6 @@ import argparse
 import zipfile
 from pathlib import Path
 
-import numpy as np
-
 from robogest.errors import InputError, MissingDependencyError, RobogestError
 
 MOTION_SUFFIXES = (".bvh", ".npz")
@@ -73,6 +71,8 @@ def _match(pred: Path, others: list[Path] | None, single: bool, what: str) -> Pa
 
 def load_input(path: Path):
     """``("trajectory", Trajectory)`` or ``("motion", HumanMotion)``; InputError naming the file otherwise."""
+    import numpy as np
+
     try:
         if path.suffix.lower() == ".npz":
             with np.load(path, allow_pickle=False) as z:
@@ -121,6 +121,8 @@ def evaluate_files(
     sim: bool = False,
 ) -> dict:
     """Metrics of one pred file (with its gt/audio files, any may be None) as a nested dict."""
+    import numpy as np
+
     from robogest.eval.report import evaluate_motion, evaluate_trajectory
 
     kind, pred = load_input(pred_path)

@@ -5,14 +5,15 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
-
-from rich import box
-from rich.console import Console
-from rich.table import Table
+from typing import TYPE_CHECKING
 
 from robogest.errors import ConfigError
-from robogest.robot.config import RobotConfig
 from robogest.robot.registry import DEFAULT_ROBOT, find_robot, list_robots
+
+if TYPE_CHECKING:  # imported lazily: `robogest --help` must not load rich, numpy or pydantic
+    from rich.console import Console
+
+    from robogest.robot.config import RobotConfig
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -35,6 +36,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.table import Table
+
     console = Console()
     table = Table(title="robots", show_lines=False)
     table.add_column("name", no_wrap=True)
@@ -64,6 +68,9 @@ def _deg(x: float) -> str:
 
 def show_robot(robot: RobotConfig, console: Console) -> None:
     """Print every table of ``robots show``."""
+    from rich import box
+    from rich.table import Table
+
     console.print(f"[bold]{robot.name}[/bold]  {robot.description}")
     console.print(f"file: {robot.path}\nmodel: {robot.model_path}")
 
@@ -115,6 +122,8 @@ def _parse_size(text: str) -> tuple[int, int]:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
     robot = find_robot(args.robot)
     console = Console()
     show_robot(robot, console)

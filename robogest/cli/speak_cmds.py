@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from robogest.cli.common import add_speech_args, ensure_audio_file, speech_from_args
-from robogest.cli.progress import progress_bar
 from robogest.robot.registry import DEFAULT_ROBOT
+
+if TYPE_CHECKING:  # imported lazily: `robogest --help` must not load numpy
+    import numpy as np
 
 SPEAK_EPILOG = """examples:
   robogest speak "Hello, I am a robot. Nice to meet you!" --video out/hello.mp4
@@ -76,6 +77,8 @@ def _report(result_lines: list[str]) -> None:
 
 def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr: int) -> list[str]:
     """Save, then play on the chosen backend; returns report lines."""
+    from robogest.cli.progress import progress_bar
+
     lines = []
     if args.save:
         traj.save(args.save)
@@ -108,6 +111,8 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
 
 
 def run_speak(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from robogest.errors import InputError
     from robogest.pipeline import speak
     from robogest.robot import find_robot
@@ -138,6 +143,8 @@ def run_speak(args: argparse.Namespace) -> int:
 
 
 def run_play(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from robogest.errors import InputError
     from robogest.pipeline import motion_to_trajectory
     from robogest.robot import find_robot
