@@ -36,4 +36,4 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = sorted(_LAZY)
+__all__ = ["RobogestError", "Robot", "UtteranceHandle", "find_robot", "list_robots", "load_speech", "synthesize"]
