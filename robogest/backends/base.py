@@ -27,6 +27,12 @@ class Backend(ABC):
 
     def __init__(self, robot: RobotConfig) -> None:
         self.robot = robot
+        #: Ticks per second of whoever streams goals (:meth:`set_control_rate`); the go-to-rest uses it too.
+        self.control_rate_hz = 100.0
+
+    def set_control_rate(self, rate_hz: float) -> None:
+        """Tick rate of the caller, Hz (called by the control loop before it connects)."""
+        self.control_rate_hz = float(rate_hz)
 
     @property
     def joint_names(self) -> list[str]:
@@ -56,7 +62,8 @@ class Backend(ABC):
         """Advance simulated time; hardware ignores it (the player waits on the clock instead)."""
 
     def shutdown(self) -> None:
-        """Torque off and disconnect. Subclasses that can move to rest first override this."""
+        """Torque off and disconnect. Subclasses that can move to rest first
+        (:func:`~robogest.backends.control.go_to_rest`) override this."""
         try:
             self.set_torque(False)
         finally:

@@ -200,27 +200,28 @@ class MujocoBackend(Backend):
         self.sim = None
         self.data = None
 
+    @property
+    def is_connected(self) -> bool:
+        return self.sim is not None
+
+    @property
+    def last_goal_rad(self) -> np.ndarray:
+        """Last goal written ``(J,)``, radians (the home pose before any)."""
+        return self._goal.copy()
+
     def shutdown(self) -> None:
-        """Glide to rest at the velocity limits (as the hardware backends do), then torque off."""
+        """Glide to rest within every limit (:func:`~robogest.backends.control.go_to_rest`, as the servo backends
+        do), then torque off."""
+        from robogest.backends.control import go_to_rest
+
         try:
             if self.sim is not None and self._torque:
-                self._glide_to_rest()
+                go_to_rest(self)
         finally:
             if self.sim is not None:
                 super().shutdown()
             else:
                 self.disconnect()
-
-    def _glide_to_rest(self) -> None:
-        q0 = self.read_positions()
-        rest = self.robot.rest_q_rad
-        t_move = float(np.max(np.abs(rest - q0) / self.robot.v_max_rad_s))
-        dt = 0.02
-        for k in range(1, int(np.ceil(t_move / dt)) + 1):
-            self.write_goal(q0 + (rest - q0) * min(1.0, k * dt / t_move))
-            self.advance(dt)
-        self.write_goal(rest)
-        self.advance(0.2)
 
     # --- extras for tests, the player and reports ------------------------------------------------
     @property

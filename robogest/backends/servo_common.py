@@ -70,8 +70,6 @@ class ServoBackend(Backend):
         Stop outside this range; default: the servos' own voltage-limit registers.
     max_load_pct : float, optional
         Stop when |load| exceeds this percentage of the maximum (off by default).
-    shutdown_rate_hz : float
-        Rate of the ramp to rest in :meth:`shutdown`.
     """
 
     family: ClassVar[str] = ""
@@ -92,7 +90,6 @@ class ServoBackend(Backend):
         max_temperature_c: float = 65.0,
         voltage_range_v: tuple[float, float] | None = None,
         max_load_pct: float | None = None,
-        shutdown_rate_hz: float = 50.0,
         **_ignored: Any,
     ) -> None:
         super().__init__(robot)
@@ -117,7 +114,6 @@ class ServoBackend(Backend):
         self.max_temperature_c = max_temperature_c
         self.voltage_range_v = voltage_range_v
         self.max_load_pct = max_load_pct
-        self.shutdown_rate_hz = shutdown_rate_hz
 
         servos = [bus.servos[n] for n in robot.joint_names]
         self.ids = np.array([s.id for s in servos], dtype=np.int64)
@@ -156,10 +152,6 @@ class ServoBackend(Backend):
         self._last_ok_s = np.zeros(n)  # time.monotonic() of that reading
         self._misses = np.zeros(n, dtype=np.int64)  # consecutive ticks without a valid reading
         self._miss_attempts = np.zeros(n, dtype=np.int64)  # attempts since the last valid reading
-
-    def set_control_rate(self, rate_hz: float) -> None:
-        """Tick rate of the caller (turns ``lost_after_s`` into a tick count)."""
-        self.control_rate_hz = float(rate_hz)
 
     @property
     def lost_after_ticks(self) -> int:
@@ -511,17 +503,19 @@ class ServoBackend(Backend):
             self._close()
 
     def shutdown(self) -> None:
-        """Ramp to rest (if torque is on and the port answers), then torque off, then close. Idempotent."""
+        """Glide to rest (if torque is on and the port answers; :func:`~robogest.backends.control.go_to_rest`),
+        then torque off, then close. Idempotent."""
         if self._shut_down:
             return
         self._shut_down = True
         problems: list[str] = []
         try:
             if self.is_connected and self.torque_enabled and not self.port_lost:
-                try:
-                    self._ramp_to_rest()
-                except BackendError as e:
-                    problems.append(str(e))
+                from robogest.backends.control import go_to_rest
+
+                problem = go_to_rest(self)
+                if problem:
+                    problems.append(problem)
         finally:
             try:
                 if self.is_connected and not self.port_lost:
@@ -535,24 +529,6 @@ class ServoBackend(Backend):
             finally:
                 self.disconnect()
         self.events.extend(f"shutdown: {p}" for p in problems)
-
-    def _ramp_to_rest(self) -> None:
-        from robogest.backends.player import ramp_duration, ramp_sample
-
-        rest = np.clip(self.robot.rest_q_rad, self.robot.q_min_rad, self.robot.q_max_rad)
-        start = self.last_goal_rad if self.last_goal_rad is not None else self.read_positions()
-        start = np.clip(start, self.robot.q_min_rad, self.robot.q_max_rad)
-        dur = ramp_duration(start, rest, self.robot.v_max_rad_s, self.robot.a_max_rad_s2)
-        period = 1.0 / self.shutdown_rate_hz
-        t0 = time.monotonic()
-        k = 1
-        while True:
-            t = k * period
-            self.write_goal(ramp_sample(start, rest, t, dur))
-            if t >= dur:
-                break
-            k += 1
-            time.sleep(max(0.0, t0 + k * period - time.monotonic()))
 
     # --- health ----------------------------------------------------------------------------------
     def _maybe_check_health(self) -> None:

@@ -1,12 +1,14 @@
 """``robogest`` command line: one subcommand module per area, each exposing ``register(subparsers)``.
 
 Exit codes: 0 success; 1 other robogest error; 2 bad input (file, flag, transcript); 3 bad robot/config
-file; 4 safety refusal; 5 hardware or simulator failure; 6 missing optional dependency; 130 Ctrl-C.
+file; 4 safety refusal; 5 hardware or simulator failure; 6 missing optional dependency; 130 Ctrl-C
+(SIGINT), 143 SIGTERM, 129 SIGHUP.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import sys
 from collections.abc import Sequence
@@ -25,7 +27,8 @@ EPILOG = """exit codes:
   4  safety refusal (e.g. NaN from a generator)
   5  hardware or simulator failure (servo missing, in error, port lost); torque was turned off
   6  optional dependency missing (the message says what to install)
-  130 interrupted (Ctrl-C); the robot was sent to rest and torque turned off
+  130 interrupted (Ctrl-C / SIGINT), 143 SIGTERM, 129 SIGHUP (terminal closed): the robot was sent to rest
+      and torque turned off (the message says if rest could not be reached)
 """
 
 
@@ -60,9 +63,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RobogestError as e:
         print(f"robogest: error: {e}", file=sys.stderr)
         return e.exit_code
-    except KeyboardInterrupt:
-        print("robogest: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:  # Ctrl-C, or SIGINT/SIGTERM/SIGHUP during motion (robogest.backends.control)
+        with contextlib.suppress(OSError):  # after SIGHUP the terminal may be gone
+            print(f"robogest: {e if str(e) else 'interrupted'}", file=sys.stderr)
+        return int(getattr(e, "exit_code", 130))
 
 
 if __name__ == "__main__":
