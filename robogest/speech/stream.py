@@ -11,7 +11,8 @@ over 10-100 ms chunks. :class:`SpeechStream` keeps the audio received so far and
   the cost per update is fixed;
 * the beat rule (:func:`~robogest.speech.beats.identify_beats`) and silent spans over the whole
   timeline received so far;
-* acoustic features (:func:`~robogest.speech.features.acoustic_features`) over the last window.
+* acoustic features (:func:`~robogest.speech.features.acoustic_features`) over the last window (RMS and
+  pitch; mel and MFCC only with ``spectral=True``).
 
 Results older than the look-ahead ``lookahead_s`` (L) are *committed*: never revised afterwards.
 Newer ones are provisional. A consumer that plays speech delayed by L therefore always knows the
@@ -82,6 +83,9 @@ class SpeechStream:
         Audio re-analysed per update for onsets and acoustic features, seconds.
     update_s : float
         New audio between two updates, seconds.
+    spectral : bool
+        Also compute the mel spectrogram and MFCC (only learned generators use them, and those are batch-only;
+        off by default, they stay zero).
     """
 
     def __init__(
@@ -89,8 +93,9 @@ class SpeechStream:
         sample_rate: int,
         lookahead_s: float = DEFAULT_LOOKAHEAD_S,
         config: SpeechConfig | None = None,
-        window_s: float = 1.5,
+        window_s: float = 1.0,
         update_s: float = 0.1,
+        spectral: bool = False,
     ) -> None:
         if not 0.0 < lookahead_s <= 0.25:
             raise InputError(f"stream: look-ahead {lookahead_s} s must lie in (0, 0.25]")
@@ -102,6 +107,7 @@ class SpeechStream:
         self.lookahead_s = float(lookahead_s)
         self.window_s = float(window_s)
         self.update_s = float(update_s)
+        self.spectral = spectral
         self._resampler = None
         if self.in_sr != self.sr:
             import soxr
@@ -253,7 +259,7 @@ class SpeechStream:
         f0 = max(0, self._feat_n - math.ceil(self.window_s * c.fps / 2))  # re-analyse a little before the commit
         f0 = max(0, min(f0, n_total - math.ceil(self.window_s * c.fps)))
         s0 = f0 * hop
-        feats = acoustic_features(a[s0:], self.sr, c, thresh)  # frames f0.. on the same grid
+        feats = acoustic_features(a[s0:], self.sr, c, thresh, spectral=self.spectral)  # frames f0.. on the same grid
         edge = 0 if final else math.ceil(_EDGE_S * c.fps)
         first = self._feat_n - f0
         n_commit = n_total if final else min(n_total - edge, math.floor(commit_s * c.fps))
@@ -281,7 +287,7 @@ class SpeechStream:
         The pad stands for speech not yet heard: it has no beats and counts as speech, except that a
         silence still open at the end of what was received continues through it (the speaker is
         pausing, so a generator keeps resting rather than leaving rest before the pause ends).
-        Acoustic features in the pad repeat the last frame. Mel/MFCC are computed as offline; the
+        Acoustic features in the pad repeat the last frame (pitch 0). The
         audio array holds the received samples followed by zeros for the pad.
         """
         a = self._take_audio()
