@@ -39,6 +39,8 @@ class IdleConfig:
         Idle motion starts this long after speech stops, seconds (0.3, the Reachy Mini app).
     fade_s : float
         Its amplitude fades in over this long, seconds, so leaving speech or rest never jumps.
+    max_joint_rad : float
+        Largest offset from rest of any joint per cycle, radians (each joint's cycle is scaled down to it).
     """
 
     breaths_per_min: float = 12.0
@@ -47,6 +49,7 @@ class IdleConfig:
     shift_rad: float = 0.05
     delay_s: float = 0.3
     fade_s: float = 1.5
+    max_joint_rad: float = 0.08
 
     def __post_init__(self) -> None:
         from robogest.errors import InputError
@@ -57,6 +60,8 @@ class IdleConfig:
             raise InputError(f"idle: shift_period_s {self.shift_period_s} must lie in [2, 120] s")
         if not (0.0 <= self.breath_rad <= 0.2 and 0.0 <= self.shift_rad <= 0.2):
             raise InputError("idle: breath_rad and shift_rad must lie in [0, 0.2] rad (idle motion is subtle)")
+        if not 0.0 < self.max_joint_rad <= 0.3:
+            raise InputError(f"idle: max_joint_rad {self.max_joint_rad} must lie in (0, 0.3] rad")
         if self.delay_s < 0 or self.fade_s <= 0:
             raise InputError("idle: delay_s must be >= 0 and fade_s > 0")
 
@@ -114,7 +119,12 @@ class IdleMotion:
             dofs, period = _cycle(kind, self.config, self.fps)
             rest = ik.retarget(self._motion(np.zeros((2, N_DOF))), q0=self.rest_q_rad).q_rad[-1]
             q = ik.retarget(self._motion(np.concatenate([dofs, dofs])), q0=rest).q_rad[len(dofs) :]  # settled
-            self._tables.append((q - rest, period))  # (T, J) offsets from the retargeted rest
+            off = q - rest  # (T, J) offsets from the retargeted rest
+            # Near a singular pose (a desk arm pointing straight up) a small human motion can swing a joint far:
+            # idle motion stays subtle on every joint.
+            peak = np.abs(off).max(axis=0)
+            off *= np.minimum(1.0, self.config.max_joint_rad / np.maximum(peak, 1e-12))
+            self._tables.append((off, period))
         self.lo = robot.q_min_rad + 0.03
         self.hi = robot.q_max_rad - 0.03
         self.started_s = 0.0  # envelope origin (loop seconds)

@@ -185,6 +185,13 @@ class Robot:
         eSpeak NG voice and rate for text.
     baudrate : int, optional
         Baud rate of a servo backend.
+    on_tick : callable (loop_s, goal_rad), optional
+        Called after every control tick with the goal ``(J,)`` radians sent (keep it short).
+    backend_options : dict, optional
+        More keyword options of the backend (e.g. ``lost_after_s`` of a servo backend).
+    warm_up : bool
+        Run the speech and planning code once in the background after opening, so the first utterance is as
+        fast as later ones.
     """
 
     def __init__(
@@ -205,6 +212,9 @@ class Robot:
         voice: str = "en-us",
         words_per_minute: int = 160,
         baudrate: int | None = None,
+        on_tick: Callable[[float, np.ndarray], None] | None = None,
+        backend_options: dict | None = None,
+        warm_up: bool = True,
     ) -> None:
         from robogest.robot.registry import find_robot
         from robogest.speech.stream import DEFAULT_LOOKAHEAD_S
@@ -224,6 +234,9 @@ class Robot:
         self.want_audio = audio and self.time_scale == 1.0
         self.voice = voice
         self.words_per_minute = words_per_minute
+        self.on_tick = on_tick
+        self.backend_options = dict(backend_options or {})
+        self.warm_up = warm_up
         self.loop: Any = None
         self.idle: IdleMotion | None = None
         self.audio_note = ""  #: why speech audio is not played ("" when it is)
@@ -251,6 +264,7 @@ class Robot:
         threadpool_limits(limits=1, user_api="blas")
         factory = get_backend_factory(self.backend_name)
         opts = {} if self.backend_name == "sim" else {"port": self.port, "baudrate": self.baudrate}
+        opts.update(self.backend_options)
         be = factory(self.config, **opts)
         if not be.realtime:
             be = _PacedSim(be)
@@ -270,7 +284,7 @@ class Robot:
                       "play times", file=sys.stderr)  # fmt: skip
         else:
             self.audio_note = "audio off" if self.time_scale == 1.0 else "time_scale is not 1"
-        self.loop = ControlLoop(be, self.rate_hz, threaded=True, time_scale=self.time_scale)
+        self.loop = ControlLoop(be, self.rate_hz, threaded=True, time_scale=self.time_scale, on_tick=self.on_tick)
         self._opened = True
         try:
             self.loop.start()
@@ -280,7 +294,8 @@ class Robot:
             self.loop.close()
             raise
         self._warm = threading.Thread(target=self._warm_up, daemon=True, name="robogest-warm-up")
-        self._warm.start()
+        if self.warm_up:
+            self._warm.start()
         return self
 
     def _warm_up(self) -> None:
@@ -332,16 +347,18 @@ class Robot:
         idle = self.idle
         assert idle is not None
         last = getattr(self, "_idle_last_s", None)
-        if last is None or t_s - last > 1.5 / self.rate_hz:  # idle was not playing: fade in again from zero
+        if last is None or t_s - last > 0.25:  # idle was not playing (late ticks skip less): fade in from zero
             idle.restart(t_s)
         self._idle_last_s = t_s
         return idle.target(t_s)
 
     # --- utterances ---------------------------------------------------------------------------------
     def _check_open(self) -> None:
-        if not self._opened:
-            raise InputError("robot session is not open; use `with Robot(...) as robot:` or call open()")
-        self.loop._check_alive()
+        loop = self.loop
+        if loop is not None and loop._error is not None:
+            raise loop._error  # the backend failed: torque is already off
+        if not self._opened or loop is None or loop._closed:
+            raise InputError("robot session is not open (never opened, or closed); use `with Robot(...) as robot:`")
 
     def say(
         self,
