@@ -166,7 +166,7 @@ def test_signal_or_exception_inside_the_session_ends_at_rest_with_torque_off(nam
     cfg = find_robot(name)
     with VirtualBus(cfg) as bus:
         backend = None
-        with pytest.raises(KeyboardInterrupt if how != "exception" else RuntimeError):  # noqa: PT012
+        with pytest.raises(KeyboardInterrupt if how != "exception" else RuntimeError):
             with Robot(name, backend=family, port=bus.port, **OPTS) as robot:
                 backend = _servo_backend(robot)
                 h = robot.say("Hello there, nice to meet you!", wait=False)
@@ -186,9 +186,8 @@ def test_session_refuses_bad_input_with_one_clear_line():
     with Robot("humanoid_xl430", backend="sim", idle=False, time_scale=FAST, warm_up=False) as robot:
         with pytest.raises(InputError, match="either TEXT"):
             robot.say()
-        with pytest.raises(InputError, match="mono"):
-            with robot.stream(16000) as s:
-                s.feed(np.zeros((320, 2), np.int16))
+        with pytest.raises(InputError, match="mono"), robot.stream(16000) as s:
+            s.feed(np.zeros((320, 2), np.int16))
         assert robot.status()["open"]  # still running
         h = robot.say("Hi.")
         assert h.done
