@@ -166,18 +166,18 @@ def test_signal_or_exception_inside_the_session_ends_at_rest_with_torque_off(nam
     cfg = find_robot(name)
     with VirtualBus(cfg) as bus:
         backend = None
-        with pytest.raises(KeyboardInterrupt if how != "exception" else RuntimeError):
-            with Robot(name, backend=family, port=bus.port, **OPTS) as robot:
-                backend = _servo_backend(robot)
-                h = robot.say("Hello there, nice to meet you!", wait=False)
-                deadline = time.monotonic() + 30
-                while h.event("first_goal") is None and time.monotonic() < deadline:
-                    time.sleep(0.02)
-                time.sleep(0.2)
-                if how == "exception":
-                    raise RuntimeError("bug in the caller")
-                signal.raise_signal(getattr(signal, how))
-                h.wait(30)  # the signal is raised in here at the latest
+        expected = KeyboardInterrupt if how != "exception" else RuntimeError
+        with pytest.raises(expected), Robot(name, backend=family, port=bus.port, **OPTS) as robot:
+            backend = _servo_backend(robot)
+            h = robot.say("Hello there, nice to meet you!", wait=False)
+            deadline = time.monotonic() + 30
+            while h.event("first_goal") is None and time.monotonic() < deadline:
+                time.sleep(0.02)
+            time.sleep(0.2)
+            if how == "exception":
+                raise RuntimeError("bug in the caller")
+            signal.raise_signal(getattr(signal, how))
+            h.wait(30)  # the signal is raised in here at the latest
         assert backend is not None and not backend.is_connected
         _bus_rest_ok(bus, name, backend)
 
