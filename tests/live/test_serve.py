@@ -144,7 +144,7 @@ def test_handshakes_without_token_or_from_a_web_page_are_refused(server):
 
 
 def test_sigterm_ends_the_server_at_rest_with_torque_off(server):
-    proc, url = server
+    proc, _ = server
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(60) == 143
     err = proc.stderr.read()
