@@ -226,7 +226,7 @@ class ControlLoop:
     backend : Backend
         Connected by :meth:`start` unless ``is_connected``; shut down by :meth:`close`.
     rate_hz : float
-        Ticks per second (loop time); default 100 Hz.
+        Ticks per wall-clock second; default 100 Hz.
     on_tick : callable (loop_s, goal_rad), optional
         Called after every tick with the loop time (s) and the goal ``(J,)`` sent (rad); keep it short.
     threaded : bool, optional
@@ -234,7 +234,9 @@ class ControlLoop:
     read_back : bool
         Read present positions every tick (a lost servo or hardware error is caught within a tick).
     time_scale : float
-        Loop seconds per wall second for realtime backends (tests use > 1); the limits hold in loop time.
+        Loop seconds per wall second (tests use > 1 to play faster than real time): ticks still come at ``rate_hz``
+        on the wall clock, each advancing the loop (and the limiter) by ``time_scale / rate_hz``; the limits hold
+        in loop time. :attr:`rate_hz` and :attr:`period_s` are in loop time.
     margin_rad : float
         Targets are kept this far inside the position limits.
     """
@@ -254,7 +256,7 @@ class ControlLoop:
             raise ValueError("rate_hz and time_scale must be positive")
         self.backend = backend
         self.robot = backend.robot
-        self.rate_hz = float(rate_hz)
+        self.rate_hz = float(rate_hz) / float(time_scale)  # ticks per loop second
         self.period_s = 1.0 / self.rate_hz
         self.on_tick = on_tick
         self.threaded = backend.realtime if threaded is None else bool(threaded)

@@ -33,7 +33,8 @@ class PlaybackReport:
     """How a playback went. Periods are wall-clock intervals between tick starts, milliseconds.
 
     ``jitter_ms`` is the mean absolute deviation of the period from the nominal ``1000 / rate_hz``;
-    ``late_ticks`` counts ticks that started more than half a period after their slot. ``retries``
+    ``late_ticks`` counts ticks that started more than half a period after their slot; ``skipped_slots`` the
+    whole periods lost to late ticks (the target time moved on; the goal still moved one limited step). ``retries``
     counts re-sent transactions and re-read servos on a serial bus; ``missed_reads`` counts present
     positions that got no valid reply within their tick (the last known value was used instead).
     """
@@ -43,6 +44,7 @@ class PlaybackReport:
     p99_period_ms: float = 0.0
     jitter_ms: float = 0.0
     late_ticks: int = 0
+    skipped_slots: int = 0
     duration_s: float = 0.0
     errors: list[str] = field(default_factory=list)
     ramp_in_s: float = 0.0
@@ -180,6 +182,7 @@ def _finish(report: PlaybackReport, backend: Backend, loop: ControlLoop, wall0: 
     report.duration_s = time.monotonic() - wall0
     report.n_ticks = loop.stats.n_ticks
     report.late_ticks = loop.stats.late_ticks
+    report.skipped_slots = loop.stats.skipped_slots
     report.retries = int(getattr(backend, "retry_count", 0))
     report.missed_reads = int(getattr(backend, "missed_reads", 0))
     if loop.rest_problem:

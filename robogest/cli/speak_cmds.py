@@ -19,8 +19,9 @@ SPEAK_EPILOG = """examples:
 
 With --backend sim (the default) nothing moves but the MuJoCo model; with dynamixel/feetech the robot's
 bus section gives ids and models, --port/--baud override it. Every command goes through the safety layer
-(joint limits, velocity and acceleration limits, rest in silent pauses); on a crash, Ctrl-C or SIGTERM
-the robot is sent to rest and torque is turned off.
+(joint limits, velocity and acceleration limits, rest in silent pauses) and, at the control rate (--fps),
+the online limiter (position, velocity, acceleration and jerk); on a crash, Ctrl-C, SIGTERM or SIGHUP the
+robot glides to rest and torque is turned off.
 """
 
 
@@ -32,7 +33,11 @@ def _add_output_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--baud", type=int, help="baud rate (default: the robot YAML's bus.baudrate)")
     p.add_argument("--fps", type=float, default=50.0, help="command rate, Hz (default: %(default)s)")
     p.add_argument("--save", metavar="FILE.npz", help="write the final command trajectory (and the audio as .wav)")
-    p.add_argument("--video", metavar="FILE.mp4", help="render the simulated robot with the speech audio (sim)")
+    p.add_argument(
+        "--video", metavar="FILE.mp4", help="render the simulated robot with the speech audio (sim; three-quarter view)"
+    )
+    p.add_argument("--video-size", metavar="WxH", type=_video_size, default=(1280, 720),
+                   help="video frame size in pixels, even numbers (default: 1280x720)")  # fmt: skip
     p.add_argument("--plot", metavar="FILE.png", help="plot wrist trajectories, beats, silent spans, joint commands")
     p.add_argument("--realtime", action="store_true", help="run the simulation in real time (sim)")
     p.add_argument("--view", action="store_true", help="open the MuJoCo viewer (needs a display)")
@@ -66,6 +71,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.set_defaults(func=run_play)
 
 
+def _video_size(text: str) -> tuple[int, int]:
+    """``WxH`` -> (width, height); argparse turns the ValueError into a usage error naming the option."""
+    w, sep, h = text.lower().partition("x")
+    if not sep or not w.isdigit() or not h.isdigit() or int(w) < 16 or int(h) < 16 or int(w) % 2 or int(h) % 2:
+        raise argparse.ArgumentTypeError(f"{text!r}: use WIDTHxHEIGHT in even pixels of at least 16, e.g. 1280x720")
+    return int(w), int(h)
+
+
 def _backend_options(args: argparse.Namespace) -> dict:
     return {"port": args.port, "baudrate": args.baud}
 
@@ -86,10 +99,12 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
     if args.backend == "sim":
         from robogest.backends.mujoco_sim import simulate
 
+        width, height = args.video_size
         with progress_bar("simulating" + (" + rendering" if args.video else "")) as cb:
             rep = simulate(
                 traj, robot, video_path=args.video, audio=audio, audio_sr=sr, realtime=args.realtime,
-                view=args.view, progress=cb,
+                view=args.view, progress=lambda t, d: cb(round(t, 1), round(d, 1)), rate_hz=args.fps,
+                width=width, height=height,
             )  # fmt: skip
         lines.append(
             f"sim tracking error: RMS {rep.tracking_rms_deg_overall:.2f} deg, max {rep.max_abs_error_deg:.2f} deg"
@@ -102,7 +117,10 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
 
         backend = get_backend_factory(args.backend)(robot, **_backend_options(args))
         with progress_bar("playing") as cb:
-            rep = play(traj, backend, rate_hz=args.fps, audio=audio, audio_sr=sr, progress=cb)
+            rep = play(
+                traj, backend, rate_hz=args.fps, audio=audio, audio_sr=sr,
+                progress=lambda t, d: cb(round(t, 1), round(d, 1)),
+            )  # fmt: skip
         lines.append(
             f"played {rep.n_ticks} ticks; period p50 {rep.p50_period_ms:.2f} ms, p99 {rep.p99_period_ms:.2f} ms, "
             f"late ticks {rep.late_ticks}, bus retries {rep.retries}, missed reads {rep.missed_reads}"

@@ -38,8 +38,8 @@ from robogest.errors import InputError
 
 #: Limits given to ruckig are shrunk by this factor so rounding never shows as a violation.
 _SHRINK = 1.0 - 1e-6
-#: A target velocity is capped at this fraction of the velocity limit (room to correct position).
-_TARGET_V_FRACTION = 0.9
+#: A target velocity is capped at this fraction of the velocity limit (room to catch up with it).
+_TARGET_V_FRACTION = 0.98
 _OK = (ruckig.Result.Working, ruckig.Result.Finished)
 
 
@@ -129,6 +129,7 @@ class OnlineLimiter:
         inp.max_jerk = (self.j_max_rad_s3 * _SHRINK).tolist()
         inp.target_acceleration = [0.0] * self.n_joints
         inp.target_velocity = [0.0] * self.n_joints
+        inp.target_position = [0.0] * self.n_joints
         return inp
 
     # --- state -------------------------------------------------------------------------------------
@@ -180,11 +181,7 @@ class OnlineLimiter:
                 cap = _TARGET_V_FRACTION * self.v_max_rad_s
                 tv = np.where(goal == tq, np.clip(tv, -cap, cap), 0.0)  # a clamped target stands still
             self._target = goal
-            inp = self._inp
-            inp.current_position, inp.current_velocity, inp.current_acceleration = _lists(s)
-            inp.target_position = goal.tolist()
-            inp.target_velocity = tv.tolist()
-            cand = self._advance(inp)
+            cand = self._follow(s, goal, tv)
             if cand is not None and not self._stops_inside(cand):
                 cand = None
         if cand is None:
@@ -203,6 +200,26 @@ class OnlineLimiter:
         q = self.propose(target_q_rad, target_v_rad_s)
         self.commit()
         return q
+
+    def _follow(self, s: MotionState, goal: np.ndarray, tv: np.ndarray) -> MotionState | None:
+        """One period towards a target at ``goal`` moving at constant velocity ``tv``, planned in the target's frame.
+
+        Relative to the moving target the problem is a plain move to (0, 0, 0) with the velocity bounds shifted by
+        ``tv`` (so the absolute velocity stays within ±v_max); acceleration and jerk are the same in both frames.
+        Planning to a fixed point instead would make the limiter slow down to "arrive" at where the target was.
+        """
+        inp = self._inp
+        inp.current_position = (s.q_rad - goal).tolist()
+        inp.current_velocity = (s.v_rad_s - tv).tolist()
+        inp.current_acceleration = s.a_rad_s2.tolist()
+        v = self.v_max_rad_s * _SHRINK
+        inp.max_velocity = (v - tv).tolist()
+        inp.min_velocity = (-v - tv).tolist()
+        rel = self._advance(inp)
+        if rel is None:
+            return None
+        t = self.period_s
+        return MotionState(rel.q_rad + goal + tv * t, rel.v_rad_s + tv, rel.a_rad_s2)
 
     def _advance(self, inp: ruckig.InputParameter) -> MotionState | None:
         try:
