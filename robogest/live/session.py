@@ -263,7 +263,8 @@ class Robot:
         # Small matrices, many threads: BLAS thread pools only fight the control loop for the cores.
         threadpool_limits(limits=1, user_api="blas")
         factory = get_backend_factory(self.backend_name)
-        opts = {} if self.backend_name == "sim" else {"port": self.port, "baudrate": self.baudrate}
+        # A session runs for hours: the simulator keeps no log of its own.
+        opts = {"record": False} if self.backend_name == "sim" else {"port": self.port, "baudrate": self.baudrate}
         opts.update(self.backend_options)
         be = factory(self.config, **opts)
         if not be.realtime:

@@ -48,10 +48,10 @@ class Goals:
         self.t.append(t)
         self.q.append(np.array(q))
 
-    def check(self, robot, rate_hz: float = 100.0) -> np.ndarray:
+    def check(self, robot) -> np.ndarray:
         """Position, velocity, acceleration and jerk limits at the loop period, like a batch trajectory's."""
         q = np.array(self.q)
-        dt, tol = 1.0 / rate_hz, 1e-7
+        dt, tol = float(np.median(np.diff(self.t))), 1e-7  # loop seconds per tick
         assert (q >= robot.q_min_rad - tol).all() and (q <= robot.q_max_rad + tol).all()
         v = np.diff(q, axis=0)
         assert (np.abs(v) <= robot.v_max_rad_s * dt + tol).all()
