@@ -145,6 +145,8 @@ class StreamingPlanner:
         self.hi = robot.q_max_rad - 0.02
         self._q_last = self.rest.copy()
         self.n_plans = 0
+        #: Human-motion frames sent, one segment per plan (the canonical-skeleton side, for evaluation).
+        self.human_segments: list[HumanMotion] = []
 
     def plan(self) -> int:
         """Extend the feed with every frame the stream now allows; returns how many were added."""
@@ -163,6 +165,9 @@ class StreamingPlanner:
             return 0
         i0 = max(0, n0 - 1)  # re-plan the last frame sent too, to see how far the new plan moved from it
         seg = HumanMotion(motion.fps, motion.rotations[i0:n_end], motion.root_pos_m[i0:n_end], motion.skeleton)
+        self.human_segments.append(
+            HumanMotion(motion.fps, motion.rotations[n0:n_end], motion.root_pos_m[n0:n_end], motion.skeleton)
+        )
         q = self.ik.retarget(seg, q0=self._q_last).q_rad  # (K, J)
         if n0 > 0:  # frames sent are kept: the new plan starts from them and its offset decays (memoryless)
             k = np.arange(len(q))[:, None]
@@ -179,6 +184,14 @@ class StreamingPlanner:
         if final:
             self._finish()
         return len(q)
+
+    def human_motion(self) -> HumanMotion:
+        """The human motion whose frames were sent, concatenated (before IK and the joint-space blend)."""
+        segs = self.human_segments
+        return HumanMotion(
+            self.feed.fps, np.concatenate([m.rotations for m in segs]), np.concatenate([m.root_pos_m for m in segs]),
+            segs[0].skeleton,
+        )  # fmt: skip
 
     def _finish(self) -> None:
         """End exactly at rest (a minimum-jerk glide if the generator's last frame is not), then close."""
