@@ -276,8 +276,7 @@ class Robot:
             if self.generator_name == "rhythm" and not self.generator_options
             else make_generator(self.generator_name, **self.generator_options)
         )
-        if self.idle_enabled:
-            self.idle = IdleMotion(self.config, self.idle_config, retargeter=self._ik)
+        self._idle_ik = DirectionIK(self.config) if self.idle_enabled else None  # its own: built in the background
         if self.want_audio:
             self._sd, self.audio_note = open_output()
             if self.audio_note:  # one line, once per session
@@ -289,15 +288,29 @@ class Robot:
         self._opened = True
         try:
             self.loop.start()
-            if self.idle is not None:
-                self.loop.set_idle(self._idle_target)
         except BaseException:
             self.loop.close()
             raise
-        self._warm = threading.Thread(target=self._warm_up, daemon=True, name="robogest-warm-up")
-        if self.warm_up:
-            self._warm.start()
+        self._warm = threading.Thread(target=self._background_start, daemon=True, name="robogest-warm-up")
+        self._warm.start()
         return self
+
+    def _background_start(self) -> None:
+        """After the loop holds the robot: tabulate the idle motion (IK of its cycles) and start it, then warm up.
+
+        Both run here so the session is ready (holding rest, taking utterances) as early as possible.
+        """
+        if self._idle_ik is not None:
+            idle = IdleMotion(self.config, self.idle_config, retargeter=self._idle_ik)
+            with self._say_lock:
+                loop = self.loop
+                if not loop._closed and loop._error is None and (loop._rest is None or loop._rest.done):
+                    self.idle = idle
+                    loop.set_idle(self._idle_target)
+                else:
+                    self.idle = idle  # an interrupt in progress turns it on when it reaches rest
+        if self.warm_up:
+            self._warm_up()
 
     def _warm_up(self) -> None:
         """Load and run the speech and planning code once (librosa's first calls compile and import a lot), so
@@ -455,7 +468,7 @@ class Robot:
             "open": bool(self._opened and loop is not None and not loop._closed),
             "speaking": bool(cur is not None and not cur.done),
             "utterance": cur.id if cur is not None else None,
-            "idle": self.idle is not None,
+            "idle": self.idle_enabled,
             "audio": not self.audio_note,
             "audio_note": self.audio_note,
             "lookahead_s": self.lookahead_s,

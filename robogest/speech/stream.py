@@ -86,6 +86,8 @@ class SpeechStream:
     spectral : bool
         Also compute the mel spectrogram and MFCC (only learned generators use them, and those are batch-only;
         off by default, they stay zero).
+    predict_beats : bool
+        In the pad of :meth:`speech` (speech not heard yet), continue the beats at the recent pace.
     """
 
     def __init__(
@@ -96,6 +98,7 @@ class SpeechStream:
         window_s: float = 1.0,
         update_s: float = 0.1,
         spectral: bool = False,
+        predict_beats: bool = True,
     ) -> None:
         if not 0.0 < lookahead_s <= 0.25:
             raise InputError(f"stream: look-ahead {lookahead_s} s must lie in (0, 0.25]")
@@ -108,6 +111,7 @@ class SpeechStream:
         self.window_s = float(window_s)
         self.update_s = float(update_s)
         self.spectral = spectral
+        self.predict_beats = predict_beats
         self._resampler = None
         if self.in_sr != self.sr:
             import soxr
@@ -284,7 +288,8 @@ class SpeechStream:
     def speech(self, pad_s: float = 0.0, source: str = "stream") -> Speech:
         """A :class:`Speech` of everything received, committed and provisional, padded by ``pad_s`` seconds.
 
-        The pad stands for speech not yet heard: it has no beats and counts as speech, except that a
+        The pad stands for speech not yet heard: its beats are guessed at the recent pace (``predict_beats``)
+        and it counts as speech, except that a
         silence still open at the end of what was received continues through it (the speaker is
         pausing, so a generator keeps resting rather than leaving rest before the pause ends).
         Acoustic features in the pad repeat the last frame (pitch 0). The
@@ -299,6 +304,16 @@ class SpeechStream:
             spans[-1] = (spans[-1][0], total)
         beats = np.concatenate([self.beats_s, self._prov_beats])
         pseudo = np.concatenate([np.asarray(self._pseudo, bool), self._prov_pseudo])
+        open_silence = bool(spans) and spans[-1][1] >= total - 1e-9
+        if pad_n and self.predict_beats and not open_silence and beats.size:
+            # Speech goes on: its beats continue at the recent pace (pseudo-beats, so a generator can prepare the
+            # next stroke before its beat is heard; the heard beat replaces the guess within L).
+            recent = np.diff(beats[-7:])
+            c = self.config
+            step = float(np.clip(np.median(recent), c.min_beat_gap_s, c.max_beat_gap_s)) if recent.size else 0.35
+            guess = np.arange(beats[-1] + step, total - 1e-9, step)
+            beats = np.concatenate([beats, guess])
+            pseudo = np.concatenate([pseudo, np.ones(guess.shape, bool)])
         n_frames = self.config.n_frames(a.shape[0] + pad_n, self.sr)
         feats = {}
         for k in ("mel_db", "mfcc", "rms", "pitch_hz"):
