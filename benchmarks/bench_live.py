@@ -54,7 +54,7 @@ def bench_help(n: int = 10) -> None:
     row("robogest --help, cold process", times, "target <= 300 ms")
 
 
-def bench_serve_ready(n: int = 3) -> None:
+def bench_serve_ready(n: int = 2) -> None:
     times = []
     for _ in range(n):
         t0 = time.perf_counter()
@@ -93,12 +93,12 @@ def bench_session() -> None:
         robot._warm.join()
         robot.say("Warm up.")  # first TTS call in this process
         say_lat, play_lat = [], []
-        for _ in range(5):
+        for _ in range(3):
             h = robot.say(TEXT, wait=True)
             say_lat.append(h.event("first_goal")["t_monotonic_s"] - h.event("requested")["t_monotonic_s"])
             play_lat.append(h.event("started")["t_monotonic_s"] - h.event("requested")["t_monotonic_s"])
         first_goal, audio_start, underruns = [], [], []
-        for _ in range(10):
+        for _ in range(8):
             with robot.stream(sp.sr) as s:
                 _feed_realtime(s, pcm, sp.sr)
             s.wait()
@@ -107,7 +107,7 @@ def bench_session() -> None:
             audio_start.append(s.handle.event("audio_start")["t_monotonic_s"] - t0)
             underruns.append(s.planner.feed.underruns)
         rest, n0 = [], len(goals)
-        for _ in range(5):
+        for _ in range(3):
             h = robot.say(TEXT, wait=False)
             while h.event("started") is None:
                 time.sleep(0.01)
@@ -135,7 +135,7 @@ def bench_session() -> None:
     print(f"{'stream underruns (ticks holding for a late plan), late ticks':<58} {sum(underruns)} / {late}")
 
 
-def bench_sync(seeds: tuple[int, ...] = (0, 1, 2, 3, 4)) -> None:
+def bench_sync(seeds: tuple[int, ...] = (0, 1, 2)) -> None:
     """Stroke sync of the robot's command trajectory (wrist sites by forward kinematics), offline vs streamed."""
     import mujoco
 
