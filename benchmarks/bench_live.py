@@ -129,7 +129,7 @@ def bench_session() -> None:
     )
     row("batch say(text), warm: call -> first goal", say_lat)
     row("batch say(text), warm: call -> audio start", play_lat)
-    row("streamed (L = 0.2 s): first chunk -> first goal", first_goal, "target <= 300 ms p95")
+    row("streamed (L = 0.15 s): first chunk -> first goal", first_goal, "target <= 300 ms p95")
     row("streamed: first chunk -> audio start", audio_start)
     row("interrupt() mid-utterance -> at rest", rest, f"target <= 500 ms; every goal within limits: {ok}")
     print(f"{'stream underruns (ticks holding for a late plan), late ticks':<58} {sum(underruns)} / {late}")

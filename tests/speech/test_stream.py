@@ -39,11 +39,11 @@ def test_streamed_beats_and_silences_match_batch(tts, sr):
 
 
 def test_committed_beats_are_never_revised_and_trail_by_the_lookahead(tts):
-    s = SpeechStream(tts.sr, lookahead_s=0.2)
+    s = SpeechStream(tts.sr)
     snapshots = []
     for i in range(0, len(tts.audio), 480):
         if s.feed(tts.audio[i : i + 480]):
-            assert s.beat_commit_s <= max(0.0, s.received_s - 0.2) + 1e-9
+            assert s.beat_commit_s <= max(0.0, s.received_s - s.lookahead_s) + 1e-9
             snapshots.append(s.beats_s.copy())
     s.close()
     final = s.beats_s
