@@ -40,7 +40,7 @@ import numpy as np
 
 from robogest.backends.base import Backend
 from robogest.errors import RobogestError
-from robogest.safety.online import OnlineLimiter
+from robogest.safety.online import LOOKAHEAD_S, OnlineLimiter
 from robogest.trajectory.types import Trajectory
 
 #: Default control rate, Hz.
@@ -239,6 +239,9 @@ class ControlLoop:
         in loop time. :attr:`rate_hz` and :attr:`period_s` are in loop time.
     margin_rad : float
         Targets are kept this far inside the position limits.
+    lookahead_s : float
+        Trajectories and idle motions are sampled this far ahead of the loop time, making up for the limiter's lag
+        (:data:`~robogest.safety.online.LOOKAHEAD_S`).
     """
 
     def __init__(
@@ -251,6 +254,7 @@ class ControlLoop:
         read_back: bool = True,
         time_scale: float = 1.0,
         margin_rad: float = 0.02,
+        lookahead_s: float = LOOKAHEAD_S,
     ) -> None:
         if not (rate_hz > 0 and time_scale > 0):
             raise ValueError("rate_hz and time_scale must be positive")
@@ -263,6 +267,7 @@ class ControlLoop:
         self.read_back = read_back
         self.time_scale = float(time_scale)
         self.margin_rad = margin_rad
+        self.lookahead_s = float(lookahead_s)
         self.limiter: OnlineLimiter | None = None
         self.stats = LoopStats()
         self.rest_q_rad = np.clip(self.robot.rest_q_rad, self.robot.q_min_rad, self.robot.q_max_rad)
@@ -492,11 +497,12 @@ class ControlLoop:
                 if tt >= tr.duration_s:
                     h.phase = "finish"
                     return tr.sample(tr.duration_s), None, h
-                return tr.sample(tt), tr.sample_velocity(tt), h
+                ahead = tt + self.lookahead_s  # the limiter lags; aiming ahead makes up for it
+                return tr.sample(ahead), tr.sample_velocity(ahead), h
         if self._rest is not None:
             return self.rest_q_rad, None, self._rest
         if self._idle is not None:
-            return np.asarray(self._idle(t), dtype=float), None, None
+            return np.asarray(self._idle(t + self.lookahead_s), dtype=float), None, None
         return self._hold, None, None
 
     def _tick(self) -> None:
