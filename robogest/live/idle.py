@@ -128,6 +128,8 @@ class IdleMotion:
         self.lo = robot.q_min_rad + 0.03
         self.hi = robot.q_max_rad - 0.03
         self.started_s = 0.0  # envelope origin (loop seconds)
+        self.stop_s: float | None = None  # fade-out origin (loop seconds), set when speech is coming
+        self.fade_out_s = 0.12
 
     def _motion(self, dofs: np.ndarray) -> HumanMotion:
         root = np.tile([0.0, CANONICAL_PELVIS_HEIGHT_M, 0.0], (len(dofs), 1))
@@ -136,12 +138,23 @@ class IdleMotion:
     def restart(self, t_s: float) -> None:
         """Speech stopped (or rest was reached) at loop time ``t_s``: fade in again from zero after the delay."""
         self.started_s = float(t_s)
+        self.stop_s = None
+
+    def stop(self, t_s: float) -> None:
+        """Speech is coming: fade out over ``fade_out_s`` from loop time ``t_s``, so the robot is at rest and still
+        when the utterance starts (it would otherwise first glide there, delaying the speech)."""
+        if self.stop_s is None:
+            self.stop_s = float(t_s)
 
     def envelope(self, t_s: float) -> float:
         """Amplitude in [0, 1] at loop time ``t_s``: 0 until ``delay_s``, then a minimum-jerk fade-in."""
         x = (t_s - self.started_s - self.config.delay_s) / self.config.fade_s
         x = min(1.0, max(0.0, x))
-        return x**3 * (10 - 15 * x + 6 * x * x)
+        env = x**3 * (10 - 15 * x + 6 * x * x)
+        if self.stop_s is not None:
+            y = min(1.0, max(0.0, (t_s - self.stop_s) / self.fade_out_s))
+            env *= 1.0 - y**3 * (10 - 15 * y + 6 * y * y)
+        return env
 
     def offset(self, t_s: float) -> np.ndarray:
         """Un-faded offset from rest ``(J,)`` radians at ``t_s`` (periodic, linear between table frames)."""

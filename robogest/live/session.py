@@ -113,7 +113,7 @@ class UtteranceHandle:
         self._attached.set()
 
     def _abandon(self, why: str) -> None:
-        """Nothing will be played (e.g. interrupted before the first motion was planned)."""
+        """Nothing will be played (e.g. interrupted before the first motion was planned; the caller resumes idle)."""
         self._abandoned = True
         self._add("interrupted", reason=why)
         self._attached.set()
@@ -357,6 +357,16 @@ class Robot:
             self._exit.close()
 
     # --- idle ---------------------------------------------------------------------------------------
+    def _idle_stop(self) -> None:
+        """Speech is coming: the idle motion fades out now (see :meth:`IdleMotion.stop`)."""
+        if self.idle is not None and self.loop is not None:
+            self.idle.stop(self.loop.now_s)
+
+    def _idle_resume(self) -> None:
+        """No speech after all (refused, abandoned, interrupted): the idle motion fades in again."""
+        if self.idle is not None and self.loop is not None:
+            self.idle.restart(self.loop.now_s)
+
     def _idle_target(self, t_s: float) -> np.ndarray:
         idle = self.idle
         assert idle is not None
@@ -392,14 +402,19 @@ class Robot:
         self._check_open()
         h = UtteranceHandle("say")
         h._add("requested")
-        speech = load_speech_input(
-            text=text, audio=audio, transcript=transcript, voice=self.voice, words_per_minute=self.words_per_minute
-        )
-        motion = self._generator.generate(speech, seed=self.seed)
-        traj, _, _ = motion_to_trajectory(
-            motion, self.config, silent_spans=speech.silent_spans, fps=DEFAULT_TRAJECTORY_FPS,
-            audio_path=str(speech.audio_path or ""),
-        )  # fmt: skip
+        self._idle_stop()
+        try:
+            speech = load_speech_input(
+                text=text, audio=audio, transcript=transcript, voice=self.voice, words_per_minute=self.words_per_minute
+            )
+            motion = self._generator.generate(speech, seed=self.seed)
+            traj, _, _ = motion_to_trajectory(
+                motion, self.config, silent_spans=speech.silent_spans, fps=DEFAULT_TRAJECTORY_FPS,
+                audio_path=str(speech.audio_path or ""),
+            )  # fmt: skip
+        except BaseException:
+            self._idle_resume()
+            raise
         h.trajectory = traj
         self._start(h, traj, lambda out: out.write(speech.audio), speech.sr)
         if wait:
@@ -450,6 +465,7 @@ class Robot:
         def resume() -> None:
             rest.wait()
             if self.idle is not None and not self.loop._closed and self.loop._rest is rest:
+                self._idle_resume()
                 self.loop.set_idle(self._idle_target)
 
         if not wait:
@@ -533,6 +549,7 @@ class StreamUtterance:
         a = self._pcm(chunk)
         if not self._chunks:
             self.handle._add("first_chunk")
+            self.robot._idle_stop()
         off = self._offset_n / self.sample_rate
         self._chunks.append((off, a.shape[0]))
         if self._audio_t0 is not None:
@@ -582,6 +599,7 @@ class StreamUtterance:
                 self._start()
             else:
                 self.handle._abandon("no speech")
+                self.robot._idle_resume()
         return self.handle
 
     def wait(self, timeout_s: float | None = None) -> bool:

@@ -168,7 +168,9 @@ class SpeechStream:
             raise InputError(f"stream: longer than the maximum {self.config.max_duration_s:.0f} s of one utterance")
         for w in words or ():
             self._add_word(w)
-        if (self._n - self._analysed_n) / self.sr >= self.update_s:
+        n = self._n
+        first = self._analysed_n < self.lookahead_s * self.sr <= n  # the first update that can commit anything
+        if first or (n - self._analysed_n) / self.sr >= self.update_s:
             self.update()
             return True
         return False
@@ -302,7 +304,8 @@ class SpeechStream:
         pad_n = 0 if self.closed else round(max(0.0, pad_s) * self.sr)
         total = now + pad_n / self.sr
         spans = list(self._spans)
-        if pad_n and spans and spans[-1][1] >= now - 1e-9:
+        analysed = self._analysed_n / self.sr  # spans are from the last update, which may trail the newest chunk
+        if pad_n and spans and spans[-1][1] >= analysed - 1e-9:
             spans[-1] = (spans[-1][0], total)
         beats = np.concatenate([self.beats_s, self._prov_beats])
         pseudo = np.concatenate([np.asarray(self._pseudo, bool), self._prov_pseudo])
