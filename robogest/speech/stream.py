@@ -170,7 +170,8 @@ class SpeechStream:
             self._add_word(w)
         n = self._n
         first = self._analysed_n < self.lookahead_s * self.sr <= n  # the first update that can commit anything
-        if first or (n - self._analysed_n) / self.sr >= self.update_s:
+        step = max(1, round(self.update_s * self.sr))  # then on a fixed grid of received time
+        if first or n // step > self._analysed_n // step:
             self.update()
             return True
         return False
