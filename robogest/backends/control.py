@@ -38,10 +38,10 @@ from typing import Any
 
 import numpy as np
 
-from robogest.backends.base import Backend
+from robogest.backends.base import Backend, check_goal
 from robogest.errors import RobogestError
 from robogest.safety.online import LOOKAHEAD_S, OnlineLimiter
-from robogest.trajectory.types import Trajectory
+from robogest.trajectory.types import Trajectory, check_matches
 
 #: Default control rate, Hz.
 DEFAULT_RATE_HZ = 100.0
@@ -234,9 +234,9 @@ class ControlLoop:
     read_back : bool
         Read present positions every tick (a lost servo or hardware error is caught within a tick).
     time_scale : float
-        Loop seconds per wall second (tests use > 1 to play faster than real time): ticks still come at ``rate_hz``
-        on the wall clock, each advancing the loop (and the limiter) by ``time_scale / rate_hz``; the limits hold
-        in loop time. :attr:`rate_hz` and :attr:`period_s` are in loop time.
+        Trajectory seconds per loop second (tests use > 1 to play faster than real time). The limiter, the clock
+        and the backend's guard keep the real period, so a sped-up trajectory is followed only as fast as the
+        limits allow.
     margin_rad : float
         Targets are kept this far inside the position limits.
     lookahead_s : float
@@ -260,7 +260,7 @@ class ControlLoop:
             raise ValueError("rate_hz and time_scale must be positive")
         self.backend = backend
         self.robot = backend.robot
-        self.rate_hz = float(rate_hz) / float(time_scale)  # ticks per loop second
+        self.rate_hz = float(rate_hz)
         self.period_s = 1.0 / self.rate_hz
         self.on_tick = on_tick
         self.threaded = backend.realtime if threaded is None else bool(threaded)
@@ -291,6 +291,13 @@ class ControlLoop:
         """Loop time of the next tick, seconds (``rate_hz`` ticks per loop second; starts at 0)."""
         return self._k * self.period_s
 
+    def loop_s_at(self, monotonic_s: float) -> float:
+        """Loop time of a ``time.monotonic()`` instant (realtime loops: ticks are due at their loop time after
+        start), for ``play(start_at=loop.loop_s_at(t_mono))``."""
+        if not self.backend.realtime:
+            raise RuntimeError("a stepped (simulated) loop has no wall-clock time; give start_at in loop time")
+        return monotonic_s - self._wall0
+
     @property
     def goal_rad(self) -> np.ndarray:
         """Last goal sent ``(J,)``, radians."""
@@ -309,7 +316,7 @@ class ControlLoop:
         if not getattr(self.backend, "is_connected", False):
             self.backend.connect()
         q_now = np.clip(self.backend.read_positions(), self.robot.q_min_rad, self.robot.q_max_rad)
-        self.backend.write_goal(q_now)  # hold where it is, so enabling torque does not jump
+        self.backend.write_goal(q_now, source="present pose at start")  # hold, so enabling torque does not jump
         self.backend.set_torque(True)
         self._adopt(q_now)
         self._started = True
@@ -325,18 +332,14 @@ class ControlLoop:
         self._k = 0
 
     def play(self, trajectory: Trajectory, start_at: float | None = None) -> PlayHandle:
-        """Play ``trajectory`` from loop time ``start_at`` (default: now); returns at once.
+        """Play ``trajectory`` from loop time ``start_at`` (default: now; from a monotonic time: :meth:`loop_s_at`);
+        returns at once.
 
-        Its joints must be the robot's, in the robot's order. A trajectory already playing is replaced (its
-        handle gets ``interrupted``); the new one starts from wherever the goal is, within the limits.
+        It must match the robot definition (:func:`~robogest.trajectory.types.check_matches`: joints in the robot's
+        order, its limits and rest). A trajectory already playing is replaced (its handle gets ``interrupted``); the
+        new one starts from wherever the goal is, within the limits.
         """
-        if list(trajectory.joint_names) != self.robot.joint_names:
-            from robogest.errors import InputError
-
-            raise InputError(
-                f"trajectory joints {list(trajectory.joint_names)} are not robot {self.robot.name}'s "
-                f"{self.robot.joint_names}; was it made for another robot ({trajectory.robot or 'unknown'})?"
-            )
+        check_matches(trajectory, self.robot)
         self._check_alive()
         h = PlayHandle(self, trajectory, start_at)
         with self._lock:
@@ -404,7 +407,7 @@ class ControlLoop:
     def run_for(self, seconds: float) -> None:
         """Tick for ``seconds`` of loop time (stepped) or wait that long (threaded)."""
         if self.threaded:
-            end = time.monotonic() + seconds / self.time_scale
+            end = time.monotonic() + seconds
             while time.monotonic() < end:
                 self._check_alive()
                 time.sleep(min(0.05, max(0.0, end - time.monotonic())))
@@ -446,7 +449,7 @@ class ControlLoop:
     def _tick_paced(self) -> None:
         """Wait for this tick's slot (realtime) or advance the simulation (stepped), then tick."""
         if self.backend.realtime:
-            wall_period = self.period_s / self.time_scale
+            wall_period = self.period_s
             due = self._wall0 + self._k * wall_period
             now = time.monotonic()
             if now < due:
@@ -491,7 +494,7 @@ class ControlLoop:
                 else:
                     return first, None, h
             if h.phase in ("run", "finish"):
-                tt = t - h.t_run0
+                tt = (t - h.t_run0) * self.time_scale
                 if h.progress is not None:
                     h.progress(min(tt, tr.duration_s), tr.duration_s)
                 if tt >= tr.duration_s:
@@ -505,13 +508,22 @@ class ControlLoop:
             return np.asarray(self._idle(t + self.lookahead_s), dtype=float), None, None
         return self._hold, None, None
 
+    def _source_name(self, h: PlayHandle | None) -> str:
+        if h is not None and h.trajectory is not None:
+            return "trajectory playback"
+        if h is not None:
+            return "control loop, glide to rest"
+        return "control loop, idle motion" if self._idle is not None else "control loop, holding"
+
     def _tick(self) -> None:
         lim = self.limiter
         t = self.now_s
         with self._lock:
             target, target_v, h = self._target(t)
+            if not np.all(np.isfinite(target)):  # a source's bug: stop (and glide to rest), never brake silently
+                check_goal(target, self.robot, lim.q_rad, self.period_s, self._source_name(h))
             q = lim.propose(target, target_v)
-            self.backend.write_goal(q)
+            self.backend.write_goal(q, source=self._source_name(h))
             lim.commit()
             departs = h is not None and h.held is not None and np.max(np.abs(q - h.held)) > 1e-9
             if departs and "first_goal" not in h.events:
@@ -547,7 +559,7 @@ class ControlLoop:
         except RobogestError as e:
             return f"could not reach rest ({e})"
         if not rest.done:
-            return f"rest not reached within {REST_TIMEOUT_S:g} s"
+            return f"did not reach rest within {REST_TIMEOUT_S:g} s"
         self._settle()
         return None
 
@@ -557,7 +569,7 @@ class ControlLoop:
             if np.max(np.abs(self.backend.read_positions() - self.rest_q_rad)) <= tol_rad:
                 return
             if self.backend.realtime:
-                time.sleep(self.period_s / self.time_scale)
+                time.sleep(self.period_s)
             else:
                 self.backend.advance(self.period_s)
 

@@ -167,6 +167,7 @@ class MujocoBackend(Backend):
         self.self_collision_s = 0.0
         self._wall0 = time.perf_counter()
         self.set_torque(True)
+        self._connected()
         self._log()
 
     def _need(self) -> tuple[SimModel, mujoco.MjData]:
@@ -192,14 +193,9 @@ class MujocoBackend(Backend):
             sim.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
         self._torque = on
 
-    def write_goal(self, q_rad: np.ndarray) -> None:
+    def _send_goal(self, q_rad: np.ndarray) -> None:
         sim, data = self._need()
-        q = np.asarray(q_rad, dtype=float)
-        if q.shape != (len(self.joint_names),):
-            raise InputError(f"goal has shape {q.shape}; expected ({len(self.joint_names)},) for {self.robot.name}")
-        if not np.all(np.isfinite(q)):
-            raise SafetyError(f"goal contains NaN/inf: {q}")
-        self._goal = np.clip(q, self.robot.q_min_rad, self.robot.q_max_rad)
+        self._goal = np.array(q_rad, dtype=float)
         data.ctrl[sim.act_idx] = self._goal
 
     def advance(self, dt_s: float) -> None:
@@ -235,11 +231,6 @@ class MujocoBackend(Backend):
     @property
     def is_connected(self) -> bool:
         return self.sim is not None
-
-    @property
-    def last_goal_rad(self) -> np.ndarray:
-        """Last goal written ``(J,)``, radians (the home pose before any)."""
-        return self._goal.copy()
 
     def shutdown(self) -> None:
         """Glide to rest within every limit (:func:`~robogest.backends.control.go_to_rest`, as the servo backends

@@ -10,6 +10,8 @@ while the goal still moves only one limited step from the last goal sent. Simula
 
 SIGINT, SIGTERM and SIGHUP raise :class:`~robogest.backends.control.Interrupted` (a KeyboardInterrupt) after the
 robot has glided to rest and torque is off; a second signal does not cut the glide short.
+The trajectory must match the robot definition (joints, limits, rest pose; limits come from the robot, never
+the file), and the backend's own guard refuses any goal that still breaks a limit.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ import numpy as np
 from robogest.backends.base import Backend
 from robogest.backends.control import ControlLoop, Interrupted, signals_end_at_rest
 from robogest.errors import BackendError, RobogestError
-from robogest.trajectory.types import Trajectory
+from robogest.trajectory.types import Trajectory, check_matches
 
 
 @dataclass
@@ -118,7 +120,8 @@ def play(
         Called every tick while the trajectory plays.
     time_scale : float
         Trajectory seconds per wall second (tests use > 1 to run faster than real time; audio is
-        skipped when it is not 1).
+        skipped when it is not 1). Every goal still keeps the robot's limits at ``rate_hz``, so a sped-up
+        trajectory is followed only as fast as they allow.
     read_back : bool
         Read present positions every tick (detects lost servos and hardware errors within one tick).
     on_start : callable (loop_s), optional
@@ -130,12 +133,17 @@ def play(
 
     Raises
     ------
+    InputError
+        The trajectory does not match ``backend.robot`` (nothing moved).
+    SafetyError
+        The backend refused a goal; the robot was sent to rest and torque turned off.
     BackendError
         A servo or the port failed; the motion was stopped, torque turned off, and the partial
         report is attached as ``error.report``.
     Interrupted
         SIGINT/SIGTERM/SIGHUP; its ``outcome`` says whether the robot reached rest.
     """
+    check_matches(trajectory, backend.robot)  # before anything moves
     report = PlaybackReport()
     sound = _Audio(audio if time_scale == 1.0 else None, audio_sr)
     wall0 = time.monotonic()
@@ -171,7 +179,7 @@ def play(
                 _finish(report, backend, loop, wall0)
             if isinstance(interrupted, Interrupted):
                 interrupted.outcome = (
-                    f"the robot could not reach rest: {problem}; torque off attempted"
+                    f"the robot {problem}; torque off attempted"
                     if problem
                     else "the robot went to rest and torque is off"
                 )
@@ -195,7 +203,7 @@ def _finish(report: PlaybackReport, backend: Backend, loop: ControlLoop, wall0: 
             report.errors.append(f"... and {len(events) - len(shown)} more bus events")
     starts = loop.stats.starts
     if len(starts) >= 2:
-        period = loop.period_s / loop.time_scale
+        period = loop.period_s
         p = np.diff(np.asarray(starts)) * 1000.0
         report.p50_period_ms = float(np.percentile(p, 50))
         report.p99_period_ms = float(np.percentile(p, 99))

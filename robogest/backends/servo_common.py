@@ -50,7 +50,7 @@ class ServoBackend(Backend):
         Extra attempts for one transaction that timed out or came back corrupted; for a sync read,
         extra rounds that re-read only the servos whose reply was missing or corrupt.
     tick_retry_budget : int
-        Servo re-reads allowed across one control tick (:meth:`write_goal` + :meth:`read_positions`),
+        Servo re-reads allowed across one control tick (:meth:`_send_goal` + :meth:`read_positions`),
         so one tick never takes much longer than its period. A position read still missing when the
         budget or the rounds are spent keeps the servo's last known value for that tick; a torque write
         that needs more than the budget stops the motion; a health reading that cannot get through is
@@ -61,7 +61,8 @@ class ServoBackend(Backend):
         row, is declared lost: motion stopped, torque off. The default leaves room for one reply timeout
         (~35 ms with the SDKs' 16 ms latency-timer allowance) so a vanished servo stops the motion within 0.2 s.
     control_rate_hz : float
-        Tick rate used to turn ``lost_after_s`` into ticks; :func:`~robogest.backends.player.play` sets it.
+        Tick rate used to turn ``lost_after_s`` into ticks, and the rate of the goal guard and of the ramp to rest
+        at shutdown; :func:`~robogest.backends.player.play` sets it (:meth:`set_control_rate`).
     health_hz : float
         Each servo's temperature, voltage and load are read at this rate (round robin).
     max_temperature_c : float
@@ -109,7 +110,7 @@ class ServoBackend(Backend):
         self.retries = retries
         self.tick_retry_budget = tick_retry_budget
         self.lost_after_s = lost_after_s
-        self.control_rate_hz = control_rate_hz
+        self.set_control_rate(control_rate_hz)
         self.health_period_s = 1.0 / health_hz if health_hz > 0 else float("inf")
         self.max_temperature_c = max_temperature_c
         self.voltage_range_v = voltage_range_v
@@ -131,7 +132,6 @@ class ServoBackend(Backend):
         self.port_lost = False
         self.torque_enabled = False
         self.torque_off_attempted = False
-        self.last_goal_rad: np.ndarray | None = None
         self.retry_count = 0  #: re-sent transactions and re-read servos
         self.missed_reads = 0  #: position reads that got no valid reply within the tick (last value kept)
         self.events: list[str] = []  #: retries and health readings worth reporting
@@ -443,6 +443,7 @@ class ServoBackend(Backend):
             self._positions_known = False
             self._next_health = time.monotonic() + self.health_period_s / max(1, len(self.ids))
             self.read_positions()
+            self._connected()
         except BaseException:
             self._safe_close()
             raise
@@ -471,11 +472,10 @@ class ServoBackend(Backend):
         self._maybe_check_health()
         return self.ticks_to_rad(ticks)
 
-    def write_goal(self, q_rad: np.ndarray) -> None:
+    def _send_goal(self, q_rad: np.ndarray) -> None:
         self._budget = self.tick_retry_budget  # a new control tick starts here
         ticks = np.clip(self.rad_to_ticks(q_rad), self._tick_lo, self._tick_hi)
         self._sync_write(self.REG["goal"], ticks)
-        self.last_goal_rad = np.asarray(q_rad, float).copy()
 
     def set_torque(self, on: bool) -> None:
         """Torque on/off, one confirmed write per servo (a lost sync write must not leave torque on)."""

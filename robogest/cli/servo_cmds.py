@@ -9,7 +9,7 @@ import sys
 import threading
 from typing import Any
 
-from robogest.errors import BackendError, InputError
+from robogest.errors import BackendError, ConfigError, InputError, SafetyError
 
 _DXL_BAUDS = (57600, 1_000_000, 115200, 2_000_000, 3_000_000, 4_000_000, 9600)
 _FT_BAUDS = (1_000_000, 500_000, 115200, 57600, 38400, 19200)
@@ -40,11 +40,21 @@ def register(subparsers: Any) -> None:
     scan.add_argument("--baud", type=int, action="append", help="repeatable; default the common ones")
     scan.set_defaults(func=_scan)
     for name in ("ping", "read", "write"):
-        p = ss.add_parser(name, help=f"{name} one servo")
+        p = ss.add_parser(
+            name,
+            help=f"{name} one servo",
+            epilog="With --robot, a write of the goal position outside that joint's limits is refused (exit 4) "
+            "and nothing is written."
+            if name == "write"
+            else None,
+        )
         p.add_argument("--port", required=True)
         p.add_argument("--id", type=int, required=True)
-        p.add_argument("--protocol", choices=_PROTOCOLS, default="dxl2")
-        p.add_argument("--baud", type=int, default=1_000_000)
+        robot_s = "the --robot's, else " if name == "write" else ""
+        p.add_argument("--protocol", choices=_PROTOCOLS, default=None, help=f"default: {robot_s}dxl2")
+        p.add_argument("--baud", type=int, default=None, help=f"default: {robot_s}1000000")
+        if name == "write":
+            p.add_argument("--robot", help="robot name or YAML path: goal positions are checked against its limits")
         if name != "ping":
             g = p.add_mutually_exclusive_group(required=True)
             g.add_argument("--register", help="register name, e.g. PRESENT_POSITION")
@@ -183,8 +193,62 @@ def _resolve(link: _Link, args: argparse.Namespace) -> tuple[str, int, int]:
     return f"address {args.addr}", args.addr, args.size or 1
 
 
+def _robot_protocol(robot: Any) -> str:
+    """The ``--protocol`` name of a robot's bus."""
+    bus = robot.bus
+    if bus.family == "dynamixel":
+        return "dxl2" if bus.protocol == 2.0 else "dxl1"
+    return "sts" if bus.protocol == 0.0 else "scs"
+
+
+def _check_goal_write(robot: Any, args: argparse.Namespace, name: str, addr: int, size: int, regs: Any) -> None:
+    """Refuse (nothing written) a goal-position write outside the joint limits of the servo's joint in ``robot``."""
+    g_addr, g_size = regs.GOAL_POSITION.value
+    if not (addr < g_addr + g_size and g_addr < addr + size):
+        return  # does not touch the goal position
+    if (addr, size) != (g_addr, g_size):
+        raise SafetyError(
+            f"servo id {args.id}: writing {name} overlaps GOAL_POSITION; write it as --register GOAL_POSITION so it "
+            f"can be checked against robot {robot.name}'s joint limits"
+        )
+    import numpy as np
+
+    import robogest.backends.dynamixel
+    import robogest.backends.feetech  # noqa: F401 - register the families
+    from robogest.backends.base import get_backend_factory
+
+    joints = {s.id: j for j, s in robot.bus.servos.items()}
+    if args.id not in joints:
+        raise InputError(f"servo id {args.id} is not in robot {robot.name} (ids {sorted(joints)}); check --id")
+    backend = get_backend_factory(robot.bus.family)(robot, port=args.port)  # the mapping only; opens nothing
+    k = robot.joint_names.index(joints[args.id])
+    ends = backend.rad_to_ticks(robot.q_min_rad)[k], backend.rad_to_ticks(robot.q_max_rad)[k]
+    lo, hi = int(min(ends)), int(max(ends))
+    if not lo <= args.value <= hi:
+        q = float(backend.ticks_to_rad(np.full(len(robot.joints), args.value))[k])
+        raise SafetyError(
+            f"servo id {args.id} (joint {joints[args.id]}): goal position {args.value} ({q:+.3f} rad) is outside "
+            f"robot {robot.name}'s joint limits, ticks [{lo}, {hi}] = [{robot.q_min_rad[k]:+.3f}, "
+            f"{robot.q_max_rad[k]:+.3f}] rad; nothing written"
+        )
+
+
 def _one(args: argparse.Namespace) -> int:
-    link = _Link(args.port, args.protocol, args.baud)
+    robot = None
+    if getattr(args, "robot", None):
+        from robogest.robot.registry import find_robot
+
+        robot = find_robot(args.robot)
+        if robot.bus is None:
+            raise ConfigError(f"robot {robot.name!r} has no bus section; add one or leave out --robot")
+        if args.protocol and args.protocol != _robot_protocol(robot):
+            raise InputError(
+                f"--protocol {args.protocol} does not match robot {robot.name} ({_robot_protocol(robot)}); "
+                "leave out --protocol to use the robot's"
+            )
+    protocol = args.protocol or (_robot_protocol(robot) if robot else "dxl2")
+    baud = args.baud or (robot.bus.baudrate if robot else 1_000_000)
+    link = _Link(args.port, protocol, baud)
     try:
         ph, port = link.ph, link.port
         if args.func is _one and not hasattr(args, "register"):
@@ -195,6 +259,8 @@ def _one(args: argparse.Namespace) -> int:
             return 0
         name, addr, size = _resolve(link, args)
         if hasattr(args, "value"):
+            if robot is not None:
+                _check_goal_write(robot, args, name, addr, size, link.registers())
             fn = {1: ph.write1ByteTxRx, 2: ph.write2ByteTxRx, 4: ph.write4ByteTxRx}[size]
             comm, err = fn(port, args.id, addr, args.value)
             if not link.ok(comm):

@@ -167,7 +167,7 @@ def run_play(args: argparse.Namespace) -> int:
     from robogest.pipeline import motion_to_trajectory
     from robogest.robot import find_robot
     from robogest.safety import check_limits
-    from robogest.trajectory import Trajectory
+    from robogest.trajectory import Trajectory, check_matches
 
     robot = find_robot(args.robot)
     path = Path(args.motion)
@@ -185,12 +185,7 @@ def run_play(args: argparse.Namespace) -> int:
             is_traj = "q_rad" in z
     if is_traj:
         traj = Trajectory.load(path)
-        if traj.joint_names != robot.joint_names:
-            made_for = traj.robot or "unknown"
-            raise InputError(
-                f"{path}: trajectory is for joints {traj.joint_names}, robot {robot.name} has "
-                f"{robot.joint_names}; pass the --robot it was made for ({made_for})"
-            )
+        check_matches(traj, robot, str(path))  # joints, limits and rest pose must be the robot's
         from robogest.errors import SafetyError
         from robogest.safety import JointLimits
 

@@ -28,7 +28,9 @@ JERK_RISE_S = 0.05
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # allow_inf_nan=False: every number in a robot file (limits, rest, speeds, offsets, gear ratios, retarget
+    # weights, frame angles) must be finite; NaN or .inf is refused naming the key.
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class JointConfig(_Strict):
@@ -201,6 +203,8 @@ def load_robot_config(path: str | Path) -> RobotConfig:
         lines = [f"{path}: invalid robot definition:"]
         for err in e.errors():
             msg = err["msg"].removeprefix("Value error, ")
+            if err["type"] == "finite_number":
+                msg = f"{err['input']!r} is not a finite number; write a real value (NaN and .inf are not allowed)"
             lines.append(f"  key {_format_loc(err['loc'])}: {msg}")
         raise ConfigError("\n".join(lines)) from None
     if not cfg.model_path.is_file():

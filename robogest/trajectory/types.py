@@ -4,13 +4,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robogest.errors import InputError
 from robogest.fileio import atomic_path
 
+if TYPE_CHECKING:
+    from robogest.robot.config import RobotConfig
+
 _ARRAY_KEYS = ("t_s", "q_rad", "q_min_rad", "q_max_rad", "v_max_rad_s", "a_max_rad_s2", "rest_q_rad", "silent")
+#: Per-joint limits a trajectory carries, and the :class:`RobotConfig` property each must equal.
+_LIMIT_KEYS = ("q_min_rad", "q_max_rad", "v_max_rad_s", "a_max_rad_s2", "rest_q_rad")
 
 
 @dataclass(eq=False)
@@ -108,3 +114,50 @@ class Trajectory:
                 )
         except (OSError, ValueError) as e:
             raise InputError(f"{path}: cannot read trajectory ({e})") from None
+
+
+def check_matches(trajectory: Trajectory, robot: RobotConfig, where: str = "") -> None:
+    """Refuse a trajectory whose joints, limits or rest pose differ from the robot definition's.
+
+    Limits always come from the robot; the copies a trajectory (file) carries must agree with them exactly, so
+    a file made for another robot, an edited or a corrupt one is never played. The commands must be finite.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    robot : RobotConfig
+    where : str
+        The file name, for the message (default: "trajectory").
+
+    Raises
+    ------
+    InputError
+        Naming the first differing key and joint, and how to fix it.
+    """
+    where = where or "trajectory"
+    fix = f"regenerate it for {robot.name} (robogest speak ... --robot {robot.name} --save FILE)"
+    if list(trajectory.joint_names) != robot.joint_names:
+        raise InputError(
+            f"{where}: joints {list(trajectory.joint_names)} differ from robot {robot.name}'s {robot.joint_names}; "
+            f"pass the --robot it was made for ({trajectory.robot or 'unknown'}), or {fix}"
+        )
+    for key in _LIMIT_KEYS:
+        mine = np.asarray(getattr(robot, key), dtype=float)
+        try:
+            theirs = np.asarray(getattr(trajectory, key), dtype=float).reshape(mine.shape)
+        except (TypeError, ValueError):
+            raise InputError(f"{where}: key {key} is not {mine.size} numbers, one per joint; {fix}") from None
+        same = np.isclose(theirs, mine, rtol=1e-9, atol=1e-12)
+        if not same.all():
+            j = int(np.flatnonzero(~same)[0])
+            raise InputError(
+                f"{where}: key {key} of joint {robot.joint_names[j]} is {float(theirs[j])!r} but {float(mine[j])!r} "
+                f"in robot {robot.name}'s definition (limits come from the robot, never the file); {fix}"
+            )
+    bad = ~np.isfinite(np.asarray(trajectory.q_rad, dtype=float))
+    if bad.any():
+        k, j = (int(i) for i in np.argwhere(bad)[0])
+        raise InputError(
+            f"{where}: command q_rad[{k}] of joint {robot.joint_names[j]} is {float(trajectory.q_rad[k, j])!r}, "
+            f"not a finite angle ({int(bad.sum())} such values); {fix}"
+        )

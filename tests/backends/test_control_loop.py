@@ -41,10 +41,6 @@ class Recorder(Backend):
         self.torque = False
         self.advanced_s = 0.0
 
-    @property
-    def last_goal_rad(self) -> np.ndarray | None:
-        return self.sent[-1].copy() if self.sent else None
-
     def connect(self) -> None:
         self.is_connected = True
 
@@ -55,7 +51,7 @@ class Recorder(Backend):
         self.torque = on
         self.torque_log.append((len(self.sent), on))
 
-    def write_goal(self, q_rad: np.ndarray) -> None:
+    def _send_goal(self, q_rad: np.ndarray) -> None:
         q = np.array(q_rad, dtype=float)
         self.sent.append(q)
         self.q = q
@@ -186,9 +182,9 @@ def test_limits_hold_on_the_simulated_robot(fps, rate):
     robot = find_robot("humanoid_xl430")
 
     class RecSim(MujocoBackend):
-        def write_goal(self, q_rad):
+        def _send_goal(self, q_rad):
             self.sent.append(np.array(q_rad, dtype=float))
-            super().write_goal(q_rad)
+            super()._send_goal(q_rad)
 
     rng = np.random.default_rng(int(fps))
     n = int(3 * fps)
@@ -334,8 +330,8 @@ class RealtimeRecorder(Recorder):
         super().__init__(robot)
         self.late_every, self.late_s = late_every, late_s
 
-    def write_goal(self, q_rad: np.ndarray) -> None:
-        super().write_goal(q_rad)
+    def _send_goal(self, q_rad: np.ndarray) -> None:
+        super()._send_goal(q_rad)
         if self.late_every and len(self.sent) % self.late_every == 0:
             time.sleep(self.late_s)
 
@@ -348,15 +344,16 @@ def test_threaded_loop_plays_and_stamps_events_on_the_monotonic_clock():
     before = time.monotonic()
     loop.start()
     try:
-        h = loop.play(sine(robot, seconds=1.0))
+        at = time.monotonic() + 0.2
+        h = loop.play(sine(robot, seconds=1.0), start_at=loop.loop_s_at(at))
         assert h.wait(timeout_s=30.0) and h.completed
         ev = h.events
-        assert before <= ev["started"].monotonic_s <= ev["first_goal"].monotonic_s <= ev["done"].monotonic_s
+        assert before <= at <= ev["started"].monotonic_s <= ev["first_goal"].monotonic_s <= ev["done"].monotonic_s
         assert ev["done"].monotonic_s <= time.monotonic()
     finally:
         loop.close()
     assert not b.torque and not b.is_connected
-    check_limits(np.array(b.sent), robot, loop.period_s)  # 0.04 loop seconds per tick (time_scale 4)
+    check_limits(np.array(b.sent), robot, 0.01)  # the real period, even with the trajectory sped up 4x
 
 
 def test_late_ticks_advance_the_target_but_not_the_step():
@@ -378,10 +375,10 @@ def test_a_failing_backend_stops_the_threaded_loop_and_says_why():
     robot = small_robot()
 
     class Failing(RealtimeRecorder):
-        def write_goal(self, q_rad):
+        def _send_goal(self, q_rad):
             if len(self.sent) > 30:
                 raise BackendError("servo id 3 (joint j1): lost")
-            super().write_goal(q_rad)
+            super()._send_goal(q_rad)
 
     b = Failing(robot)
     loop = ControlLoop(b, 100.0).start()
@@ -390,3 +387,23 @@ def test_a_failing_backend_stops_the_threaded_loop_and_says_why():
         h.wait(timeout_s=30.0)
     assert "could not reach rest" in (loop.close() or "")
     assert not b.torque and not b.is_connected
+
+
+def test_jerk_limits_come_from_the_yaml_or_the_default_rule(tmp_path):
+    import yaml
+
+    from robogest.errors import ConfigError
+    from robogest.robot.config import load_robot_config
+
+    default = make_robot([-1.0], [1.0], [3.0], [15.0], [0.0])
+    assert default.j_max_rad_s3 == pytest.approx([15.0 / 0.05])  # the acceleration limit reached in 50 ms
+    explicit = make_robot([-1.0], [1.0], [3.0], [15.0], [0.0], j_max=[120.0])
+    assert explicit.j_max_rad_s3 == pytest.approx([120.0])
+    doc = {
+        "name": "x", "model": "x.xml", "retarget": [{"human": ["r_shoulder", "r_elbow"], "robot": ["a", "b"]}],
+        "joints": [{"name": "j", "lower_rad": -1, "upper_rad": 1, "max_velocity_rad_s": 1,
+                    "max_acceleration_rad_s2": 1, "max_jerk_rad_s3": -5}],
+    }  # fmt: skip
+    (tmp_path / "x.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(ConfigError, match=r"joints\[0\]\.max_jerk_rad_s3"):
+        load_robot_config(tmp_path / "x.yaml")

@@ -95,14 +95,14 @@ def test_second_interrupt_during_the_glide_does_not_drop_the_arms(monkeypatch, c
     write = DynamixelBackend.write_goal
     after: list[np.ndarray] = []
 
-    def write_and_interrupt(self, q):
+    def write_and_interrupt(self, q, **kw):
         from robogest.backends import control
 
         if control._SIG.fired is not None:
             after.append(np.array(q, dtype=float))
             if len(after) == 3:
                 signal.raise_signal(signal.SIGINT)
-        return write(self, q)
+        return write(self, q, **kw)
 
     monkeypatch.setattr(DynamixelBackend, "write_goal", write_and_interrupt)
     robot = find_robot("humanoid_xl430")
@@ -124,16 +124,16 @@ def test_interrupt_when_the_bus_is_gone_says_rest_was_not_reached(monkeypatch, c
     from robogest.errors import BackendError
 
     _signal_at(monkeypatch, signal.SIGTERM)
-    write = DynamixelBackend.write_goal
+    send = DynamixelBackend._send_goal
 
-    def write_or_fail(self, q):
+    def send_or_fail(self, q):
         from robogest.backends import control
 
         if control._SIG.fired is not None:
             raise BackendError("serial port lost while sync writing GOAL_POSITION")
-        return write(self, q)
+        return send(self, q)
 
-    monkeypatch.setattr(DynamixelBackend, "write_goal", write_or_fail)
+    monkeypatch.setattr(DynamixelBackend, "_send_goal", send_or_fail)
     robot = find_robot("humanoid_xl430")
     with VirtualBus(robot) as bus:
         rc = main(["speak", "Hello there, I wave while I talk.", "--backend", "dynamixel", "--port", bus.port])
@@ -141,7 +141,7 @@ def test_interrupt_when_the_bus_is_gone_says_rest_was_not_reached(monkeypatch, c
         assert not any(s.torque_on for s in bus.servos)
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 143 and len(err) == 1
-    assert err[0].startswith("robogest: interrupted by SIGTERM; the robot could not reach rest: ")
+    assert err[0].startswith("robogest: interrupted by SIGTERM; the robot could not reach rest (")
     assert "serial port lost" in err[0] and err[0].endswith("torque off attempted")
 
 
