@@ -1,0 +1,39 @@
+"""Co-speech gestures for servo-driven humanoid robots.
+
+The names a user needs load on first use (module ``__getattr__``), so ``import robogest`` and
+``robogest --help`` stay fast::
+
+    from robogest import Robot
+    with Robot("humanoid_xl430", backend="sim") as robot:
+        robot.say("Hello! Nice to meet you.")
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from robogest.errors import RobogestError
+    from robogest.live import Robot, UtteranceHandle
+    from robogest.robot.registry import find_robot, list_robots
+    from robogest.speech import load_speech, synthesize
+
+_LAZY = {
+    "Robot": "robogest.live",
+    "UtteranceHandle": "robogest.live",
+    "RobogestError": "robogest.errors",
+    "find_robot": "robogest.robot.registry",
+    "list_robots": "robogest.robot.registry",
+    "load_speech": "robogest.speech",
+    "synthesize": "robogest.speech",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["RobogestError", "Robot", "UtteranceHandle", "find_robot", "list_robots", "load_speech", "synthesize"]

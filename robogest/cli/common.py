@@ -7,8 +7,10 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from robogest.speech.types import Speech
+if TYPE_CHECKING:  # imported lazily: `robogest --help` must not load numpy
+    from robogest.speech.types import Speech
 
 
 def add_speech_args(p: argparse.ArgumentParser, text_positional: bool = True) -> None:

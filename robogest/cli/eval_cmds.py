@@ -9,12 +9,14 @@ from __future__ import annotations
 import argparse
 import zipfile
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from robogest.cli import checks
 from robogest.errors import InputError, MissingDependencyError, RobogestError
 from robogest.fileio import npz_keys
+
+if TYPE_CHECKING:
+    import numpy as np
 
 MOTION_SUFFIXES = (".bvh", ".npz")
 AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".mp3")
@@ -79,6 +81,7 @@ def _match(pred: Path, others: list[Path] | None, single: bool, what: str) -> Pa
 
 def load_input(path: Path):
     """``("trajectory", Trajectory)`` or ``("motion", HumanMotion)``; InputError naming the file otherwise."""
+
     try:
         if path.suffix.lower() == ".npz" and "q_rad" in npz_keys(path):
             from robogest.trajectory.types import Trajectory
@@ -141,6 +144,8 @@ def evaluate_files(
     sim: bool = False,
 ) -> dict:
     """Metrics of one pred file (with its gt/audio files, any may be None) as a nested dict."""
+    import numpy as np
+
     from robogest.eval.report import evaluate_motion, evaluate_trajectory
 
     kind, pred = load_input(pred_path)

@@ -25,7 +25,7 @@ from robogest.errors import RobogestError
 
 #: Subcommand modules under ``robogest.cli``; each defines ``register(subparsers) -> None`` and sets
 #: ``func`` (``(argparse.Namespace) -> int``) on its parsers.
-_MODULES = ("speech_cmds", "robots_cmds", "speak_cmds", "servo_cmds", "eval_cmds", "train_cmds")
+_MODULES = ("speech_cmds", "robots_cmds", "speak_cmds", "servo_cmds", "eval_cmds", "train_cmds", "serve_cmds")
 
 EPILOG = """exit codes:
   0  success

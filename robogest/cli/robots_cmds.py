@@ -5,12 +5,15 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from robogest.cli import checks
 from robogest.cli.common import TextTable, add_json_flag, print_json, print_table, print_text
 from robogest.errors import ConfigError
-from robogest.robot.config import RobotConfig
 from robogest.robot.registry import DEFAULT_ROBOT, find_robot, list_robots
+
+if TYPE_CHECKING:  # imported lazily: `robogest --help` must not load rich, numpy or pydantic
+    from robogest.robot.config import RobotConfig
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

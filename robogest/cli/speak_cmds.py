@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from robogest.cli import checks
 from robogest.cli.common import (
@@ -17,8 +16,10 @@ from robogest.cli.common import (
     speech_from_args,
     speech_inputs,
 )
-from robogest.cli.progress import progress_bar
 from robogest.robot.registry import DEFAULT_ROBOT
+
+if TYPE_CHECKING:  # imported lazily: `robogest --help` must not load numpy
+    import numpy as np
 
 SPEAK_EPILOG = """examples:
   robogest speak "Hello, I am a robot. Nice to meet you!" --video out/hello.mp4
@@ -134,6 +135,8 @@ def _check_export(args: argparse.Namespace) -> None:
 
 def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr: int) -> None:
     """Save, export, then play on the chosen backend, printing each result as soon as it is known."""
+    from robogest.cli.progress import progress_bar
+
     if args.save:
         traj.save(args.save)
         print(f"trajectory: {args.save} ({traj.n_frames} frames at {traj.fps:g} Hz, {traj.duration_s:.2f} s)")
@@ -171,6 +174,8 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
 
 
 def run_speak(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from robogest.errors import InputError
     from robogest.pipeline import speak
     from robogest.robot import find_robot
@@ -203,6 +208,7 @@ def run_speak(args: argparse.Namespace) -> int:
 
 
 def run_play(args: argparse.Namespace) -> int:
+
     from robogest.errors import InputError
     from robogest.fileio import npz_keys
     from robogest.pipeline import motion_to_trajectory

@@ -1,6 +1,30 @@
-"""Robot definitions (YAML) and where to find them."""
+"""Robot definitions (YAML) and where to find them.
 
-from robogest.robot.config import RobotConfig, load_robot_config
-from robogest.robot.registry import find_robot, list_robots, robots_dir
+Names load on first use (module ``__getattr__``) so that finding a robot's name costs no numpy/pydantic import.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from robogest.robot.config import RobotConfig, load_robot_config
+    from robogest.robot.registry import find_robot, list_robots, robots_dir
+
+_LAZY = {
+    "RobotConfig": "robogest.robot.config",
+    "load_robot_config": "robogest.robot.config",
+    "find_robot": "robogest.robot.registry",
+    "list_robots": "robogest.robot.registry",
+    "robots_dir": "robogest.robot.registry",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = ["RobotConfig", "find_robot", "list_robots", "load_robot_config", "robots_dir"]

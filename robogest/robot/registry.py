@@ -12,9 +12,12 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from robogest.errors import ConfigError
-from robogest.robot.config import RobotConfig, load_robot_config
+
+if TYPE_CHECKING:  # the config (numpy, pydantic) loads when a robot is first looked up
+    from robogest.robot.config import RobotConfig
 
 #: The robot `speak` uses when none is named.
 DEFAULT_ROBOT = "humanoid_xl430"
@@ -50,6 +53,8 @@ def list_robots() -> dict[str, Path]:
 
 def find_robot(name_or_path: str) -> RobotConfig:
     """Load a robot by name (``humanoid_xl430``) or by path to its YAML."""
+    from robogest.robot.config import load_robot_config
+
     p = Path(name_or_path)
     if p.suffix in (".yaml", ".yml") or p.is_file():
         return load_robot_config(p)

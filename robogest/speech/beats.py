@@ -122,7 +122,7 @@ def identify_beats(
     return np.asarray(beats, dtype=np.float64), np.asarray(pseudo, dtype=bool)
 
 
-def detect_onsets(audio: np.ndarray, sr: int, hop: int) -> np.ndarray:
+def detect_onsets(audio: np.ndarray, sr: int, hop: int, envelope_max: float | None = None) -> np.ndarray:
     """Audio onsets via librosa (spectral flux on a mel spectrogram, peak picking).
 
     Parameters
@@ -132,19 +132,35 @@ def detect_onsets(audio: np.ndarray, sr: int, hop: int) -> np.ndarray:
         Sample rate, Hz.
     hop : int
         Onset envelope hop, samples.
+    envelope_max : float, optional
+        Scale of the onset envelope for peak picking. By default the envelope of ``audio`` is scaled to
+        [0, 1] (the whole utterance offline); the streaming front-end passes the running maximum so that
+        a short window is judged on the same scale.
 
     Returns
     -------
     ndarray [shape=(K,)], seconds
     """
+    return onset_envelope_peaks(audio, sr, hop, envelope_max)[0]
+
+
+def onset_envelope_peaks(
+    audio: np.ndarray, sr: int, hop: int, envelope_max: float | None = None
+) -> tuple[np.ndarray, float]:
+    """:func:`detect_onsets` plus the largest envelope value of ``audio`` (0 when too short or silent)."""
     import librosa
 
     if audio.shape[0] < 2 * hop or not np.any(audio):
-        return np.zeros(0)
+        return np.zeros(0), 0.0
     n_fft = 1 << max(8, math.ceil(math.log2(4 * hop)))
     env = librosa.onset.onset_strength(y=audio, sr=sr, hop_length=hop, n_fft=n_fft, n_mels=40, fmax=sr / 2)
-    frames = librosa.onset.onset_detect(onset_envelope=env, sr=sr, hop_length=hop, units="frames")
-    return np.asarray(frames, dtype=np.float64) * hop / sr
+    peak = float(env.max() - env.min())
+    if envelope_max is not None:
+        env = (env - env.min()) / max(envelope_max, peak, 1e-12)
+    frames = librosa.onset.onset_detect(
+        onset_envelope=env, sr=sr, hop_length=hop, units="frames", normalize=envelope_max is None
+    )
+    return np.asarray(frames, dtype=np.float64) * hop / sr, peak
 
 
 def gate_onsets(

@@ -68,7 +68,9 @@ def forward_diff(x: np.ndarray) -> np.ndarray:
     return d
 
 
-def acoustic_features(audio: np.ndarray, sr: int, config: SpeechConfig, activity_threshold: float) -> dict:
+def acoustic_features(
+    audio: np.ndarray, sr: int, config: SpeechConfig, activity_threshold: float, spectral: bool = True
+) -> dict:
     """Mel spectrogram, MFCC, RMS and pitch on the frame grid.
 
     Parameters
@@ -80,6 +82,9 @@ def acoustic_features(audio: np.ndarray, sr: int, config: SpeechConfig, activity
     config : SpeechConfig
     activity_threshold : float
         RMS (linear) a frame must exceed to be voiced, see :mod:`robogest.speech.silence`.
+    spectral : bool
+        Compute mel and MFCC (False leaves them zero: the streaming front-end serves only generators that
+        use RMS and pitch, and saves their cost on every update).
 
     Returns
     -------
@@ -100,9 +105,13 @@ def acoustic_features(audio: np.ndarray, sr: int, config: SpeechConfig, activity
         return {"mel_db": np.zeros((0, config.n_mels), np.float32), "mfcc": np.zeros((0, 37), np.float32),
                 "rms": z, "pitch_hz": z.copy()}  # fmt: skip
 
-    mel_db = log_mel_db(audio, sr, hop, win, config.n_mels)
-    cep = librosa.feature.mfcc(S=mel_db.T, n_mfcc=N_MFCC).T.astype(np.float32)
     rms = frame_rms(audio, sr, hop, win)
+    if spectral:
+        mel_db = log_mel_db(audio, sr, hop, win, config.n_mels)
+        cep = librosa.feature.mfcc(S=mel_db.T, n_mfcc=N_MFCC).T.astype(np.float32)
+    else:
+        mel_db = np.zeros((rms.shape[0], config.n_mels), np.float32)
+        cep = np.zeros((rms.shape[0], N_MFCC), np.float32)
 
     frame_length = 1 << math.ceil(math.log2(4.0 * sr / config.fmin_hz))
     if audio.shape[0] >= 1:

@@ -1,0 +1,192 @@
+"""Live session latencies beside the batch path (one run): what a conversation with the robot feels like.
+
+* ``robogest --help`` cold (a fresh process each time);
+* ``robogest serve`` start -> ready line (sim backend);
+* warm ``Robot.say(text)``: call -> first goal (batch: TTS, whole-utterance generation, IK, safety layer);
+* streamed speech fed in real time in 20 ms chunks: first chunk -> first goal, -> audio start;
+* ``interrupt()`` mid-utterance -> at rest, with every goal checked against the position, velocity,
+  acceleration and jerk limits;
+* stroke sync, offline vs streamed on the same audio: the chance-corrected wrist-speed-peak PMB of the
+  evaluation (``robogest.eval.beats``, z against circular shifts, δ = 0.1 s) on the robot's command trajectory
+  (wrist sites by forward kinematics), averaged over seeds.
+
+Targets (issue 16, on the 2-core machine): first chunk -> first motion ≤ 0.3 s p95 (L included); interrupt ->
+rest ≤ 0.5 s; ``--help`` ≤ 0.3 s; serve ready ≤ 3 s; streamed stroke sync within 10 % of offline.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+ENV = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+TEXT = "Hello there! It is really nice to meet you today."
+PARAGRAPH = (
+    "Good morning everyone, and thank you for coming. Today I want to talk about three things. "
+    "First, why robots should move when they speak. ... Second, how the rhythm of speech shapes a gesture. "
+    "And finally, what we can build together next year."
+)
+
+
+def pct(x: list[float], q: float) -> float:
+    return float(np.percentile(np.asarray(x), q))
+
+
+def row(what: str, values: list[float], target: str = "", unit: str = "s") -> None:
+    ms = unit == "s"
+    f = (lambda v: f"{v * 1000:.0f} ms") if ms else (lambda v: f"{v:.2f}")
+    print(f"{what:<58} p50 {f(pct(values, 50)):>8}  p95 {f(pct(values, 95)):>8}  n={len(values):<3} {target}")
+
+
+def bench_help(n: int = 10) -> None:
+    times = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "robogest", "--help"], env=ENV, capture_output=True, check=True)
+        times.append(time.perf_counter() - t0)
+    row("robogest --help, cold process", times, "target <= 300 ms")
+
+
+def bench_serve_ready(n: int = 2) -> None:
+    times = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        cmd = [sys.executable, "-m", "robogest", "serve", "--listen", "127.0.0.1:0", "--no-idle"]
+        proc = subprocess.Popen(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        line = proc.stdout.readline()
+        times.append(time.perf_counter() - t0)
+        assert "ready on" in line, line + proc.stderr.read()
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(60)
+    row("robogest serve (sim): start -> ready", times, "target <= 3000 ms")
+
+
+def _feed_realtime(stream, audio: np.ndarray, sr: int, chunk_s: float = 0.02) -> None:
+    step = round(chunk_s * sr)
+    t0 = time.monotonic()
+    for k, i in enumerate(range(0, len(audio), step)):
+        stream.feed(audio[i : i + step])
+        time.sleep(max(0.0, t0 + (k + 1) * chunk_s - time.monotonic()))
+
+
+def bench_session() -> None:
+    from robogest.live import Robot
+    from robogest.speech import synthesize
+
+    goals: list[np.ndarray] = []
+    ticks: list[float] = []
+
+    def on_tick(t: float, q: np.ndarray) -> None:
+        ticks.append(t)
+        goals.append(np.array(q))
+
+    sp = synthesize(TEXT)
+    pcm = np.round(sp.audio * 32767).astype(np.int16)
+    with Robot("humanoid_xl430", backend="sim", idle=True, on_tick=on_tick) as robot:
+        robot._warm.join()
+        robot.say("Warm up.")  # first TTS call in this process
+        say_lat, play_lat = [], []
+        for _ in range(3):
+            h = robot.say(TEXT, wait=True)
+            say_lat.append(h.event("first_goal")["t_monotonic_s"] - h.event("requested")["t_monotonic_s"])
+            play_lat.append(h.event("started")["t_monotonic_s"] - h.event("requested")["t_monotonic_s"])
+        first_goal, audio_start, underruns = [], [], []
+        for _ in range(8):
+            with robot.stream(sp.sr) as s:
+                _feed_realtime(s, pcm, sp.sr)
+            s.wait()
+            t0 = s.handle.event("first_chunk")["t_monotonic_s"]
+            first_goal.append(s.handle.event("first_goal")["t_monotonic_s"] - t0)
+            audio_start.append(s.handle.event("audio_start")["t_monotonic_s"] - t0)
+            underruns.append(s.planner.feed.underruns)
+        rest, n0 = [], len(goals)
+        for _ in range(3):
+            h = robot.say(TEXT, wait=False)
+            while h.event("started") is None:
+                time.sleep(0.01)
+            time.sleep(1.0)
+            r = robot.interrupt()
+            rest.append(r["at_rest_s"] - r["interrupt_s"])
+        cfg = robot.config
+        period = robot.loop.period_s
+        late = robot.loop.stats.late_ticks
+    q = np.array(goals[n0:])
+    v = np.diff(q, axis=0)
+    a = np.diff(v, axis=0)
+    tol = 1e-7
+    ok = (
+        bool((q >= cfg.q_min_rad - tol).all() and (q <= cfg.q_max_rad + tol).all())
+        and bool((np.abs(v) <= cfg.v_max_rad_s * period + tol).all())
+        and bool((np.abs(a) <= cfg.a_max_rad_s2 * period**2 + tol).all())
+        and bool((np.abs(np.diff(a, axis=0)) <= cfg.j_max_rad_s3 * period**3 + tol).all())
+    )
+    row("batch say(text), warm: call -> first goal", say_lat)
+    row("batch say(text), warm: call -> audio start", play_lat)
+    row("streamed (L = 0.15 s): first chunk -> first goal", first_goal, "target <= 300 ms p95")
+    row("streamed: first chunk -> audio start", audio_start)
+    row("interrupt() mid-utterance -> at rest", rest, f"target <= 500 ms; every goal within limits: {ok}")
+    print(f"{'stream underruns (ticks holding for a late plan), late ticks':<58} {sum(underruns)} / {late}")
+
+
+def bench_sync(seeds: tuple[int, ...] = (0, 1, 2)) -> None:
+    """Stroke sync of the robot's command trajectory (wrist sites by forward kinematics), offline vs streamed."""
+    import mujoco
+
+    from robogest.eval.beats import WRIST_PEAK_DELTA_S, chance_corrected, pmb, wrist_speed_peaks
+    from robogest.generators import make_generator
+    from robogest.live.planner import StreamingPlanner
+    from robogest.pipeline import motion_to_trajectory
+    from robogest.retarget import DirectionIK
+    from robogest.robot import find_robot
+    from robogest.speech import synthesize
+    from robogest.speech.stream import SpeechStream
+
+    sp = synthesize(PARAGRAPH)
+    robot = find_robot("humanoid_xl430")
+    ik, gen = DirectionIK(robot), make_generator("rhythm")
+    sites = [mujoco.mj_name2id(ik.model, mujoco.mjtObj.mjOBJ_SITE, n) for n in ("l_wrist_site", "r_wrist_site")]
+
+    def z_of(q: np.ndarray, fps: float) -> float:
+        pos = np.empty((len(q), 2, 3))
+        for k, qk in enumerate(q):
+            ik.data.qpos[ik.qadr] = qk
+            mujoco.mj_kinematics(ik.model, ik.data)
+            pos[k] = ik.data.site_xpos[sites]
+        wp = wrist_speed_peaks(pos, fps, [0, 1])
+        return chance_corrected(lambda m, b: pmb(m, b, WRIST_PEAK_DELTA_S), wp, sp.beats_s, len(q) / fps)["z"]
+
+    off, on = [], []
+    for seed in seeds:
+        traj, _, _ = motion_to_trajectory(gen.generate(sp, seed=seed), robot, silent_spans=sp.silent_spans)
+        off.append(z_of(traj.q_rad, traj.fps))
+        st = SpeechStream(sp.sr)
+        pl = StreamingPlanner(robot, gen, ik, st, seed=seed)
+        for i in range(0, len(sp.audio), 320):
+            if st.feed(sp.audio[i : i + 320]):
+                pl.plan()
+        st.close()
+        pl.plan()
+        on.append(z_of(pl.feed.to_trajectory().q_rad, pl.feed.fps))
+    mo, mn = float(np.mean(off)), float(np.mean(on))
+    print(
+        f"{'stroke sync z (robot wrist-peak PMB, 0.1 s), ' + str(len(seeds)) + ' seeds':<58} offline {mo:.2f}  "
+        f"streamed {mn:.2f}  ({100 * (mn - mo) / abs(mo):+.0f} %; target within 10 %)"
+    )
+
+
+if __name__ == "__main__":
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1, user_api="blas")
+    print(f"load average at start: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    bench_help()
+    bench_serve_ready()
+    bench_session()
+    bench_sync()

@@ -1,0 +1,9 @@
+"""A live robot session: :class:`Robot` (Python API) and ``robogest serve`` (the same session over WebSocket).
+
+Stage-wise this package sits on top of everything: it drives speech -> generator -> IK -> control loop.
+"""
+
+from robogest.live.idle import IdleConfig, IdleMotion
+from robogest.live.session import EVENT_TYPES, Robot, StreamUtterance, UtteranceHandle
+
+__all__ = ["EVENT_TYPES", "IdleConfig", "IdleMotion", "Robot", "StreamUtterance", "UtteranceHandle"]

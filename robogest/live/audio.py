@@ -1,0 +1,79 @@
+"""Speech output of a live session: ``sounddevice`` when installed and an output device exists, else nothing.
+
+Without it, the session still schedules the audio: every utterance's events carry the ``time.monotonic()``
+at which each stretch of its audio should start playing, so the caller can play it in sync.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+from typing import Any
+
+import numpy as np
+
+
+def open_output() -> tuple[Any, str]:
+    """``(sounddevice module or None, why not)``: None when not installed, no PortAudio or no output device."""
+    try:
+        import sounddevice as sd
+    except Exception:  # ImportError, or OSError when PortAudio is missing
+        return None, "sounddevice is not installed (pip install 'robogest[audio]')"
+    try:
+        sd.query_devices(kind="output")
+    except Exception:
+        return None, "no audio output device"
+    return sd, ""
+
+
+class AudioOut:
+    """Plays float32 mono chunks back to back from a start call on; ``write`` may come before or after it.
+
+    One ``sounddevice.OutputStream`` per utterance; chunks queue in memory (an utterance is seconds long).
+    """
+
+    def __init__(self, sd: Any, sr: int) -> None:
+        self.sd = sd
+        self.sr = int(sr)
+        self._buf: list[np.ndarray] = []
+        self._pos = 0
+        self._lock = threading.Lock()
+        self._stream: Any = None
+
+    def write(self, chunk: np.ndarray) -> None:
+        with self._lock:
+            self._buf.append(np.asarray(chunk, np.float32))
+
+    def _callback(self, out: np.ndarray, frames: int, _time: Any, _status: Any) -> None:
+        out.fill(0)
+        with self._lock:
+            got = 0
+            while got < frames and self._buf:
+                head = self._buf[0]
+                take = min(frames - got, head.shape[0] - self._pos)
+                out[got : got + take, 0] = head[self._pos : self._pos + take]
+                got += take
+                self._pos += take
+                if self._pos >= head.shape[0]:
+                    self._buf.pop(0)
+                    self._pos = 0
+
+    def start(self) -> bool:
+        if self.sd is None:
+            return False
+        try:
+            self._stream = self.sd.OutputStream(
+                samplerate=self.sr, channels=1, dtype="float32", callback=self._callback
+            )
+            self._stream.start()
+            return True
+        except Exception:
+            self._stream = None
+            return False
+
+    def stop(self) -> None:
+        if self._stream is not None:
+            with contextlib.suppress(Exception):
+                self._stream.stop()
+                self._stream.close()
+            self._stream = None

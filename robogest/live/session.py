@@ -1,0 +1,610 @@
+"""A live robot session: one connection, many utterances, idle motion in between, interruption.
+
+:class:`Robot` owns one :class:`~robogest.backends.control.ControlLoop` (the one player: every goal passes its
+online position/velocity/acceleration/jerk limiter) for its whole life. Torque goes on when the session opens
+and stays on between utterances, holding rest or playing the idle motion; it goes off only when the session
+closes, on an unrecoverable backend error, or on SIGINT/SIGTERM/SIGHUP, always after the glide to rest.
+
+Utterances:
+
+* :meth:`Robot.say` - text (eSpeak NG) or an audio file: the batch pipeline (speech -> ``rhythm`` or a
+  learned generator -> IK -> safety layer) makes a trajectory, the loop plays it;
+* :meth:`Robot.stream` - PCM chunks from a voice agent: :class:`~robogest.speech.stream.SpeechStream` +
+  :class:`~robogest.live.planner.StreamingPlanner` extend a trajectory while it plays, L seconds behind the
+  newest audio; the speech audio is delayed by the same L.
+
+Every utterance returns an :class:`UtteranceHandle` whose :attr:`~UtteranceHandle.events` are dicts with
+``type`` and ``t_monotonic_s`` (``time.monotonic()``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from robogest.backends.base import Backend
+from robogest.errors import InputError
+from robogest.live.audio import AudioOut, open_output
+from robogest.live.idle import IdleConfig, IdleMotion
+from robogest.robot.registry import DEFAULT_ROBOT
+
+#: Event types an utterance can report, in the order they usually happen.
+EVENT_TYPES = ("requested", "first_chunk", "first_goal", "started", "audio_start", "done", "interrupted")
+_ids = itertools.count(1)
+
+
+class _PacedSim(Backend):
+    """The MuJoCo backend advanced one control period per goal and paced on the wall clock like hardware.
+
+    A live session must keep time with speech; the control loop paces realtime backends and steps simulated
+    ones flat out, so the simulator is presented as a realtime backend that advances itself on every goal.
+    """
+
+    realtime = True
+
+    def __init__(self, inner: Backend) -> None:
+        super().__init__(inner.robot)
+        self.inner = inner
+
+    @property
+    def is_connected(self) -> bool:
+        return bool(getattr(self.inner, "is_connected", False))
+
+    @property
+    def last_goal_rad(self) -> np.ndarray | None:
+        return getattr(self.inner, "last_goal_rad", None)
+
+    def set_control_rate(self, rate_hz: float) -> None:
+        super().set_control_rate(rate_hz)
+        self.inner.set_control_rate(rate_hz)
+
+    def connect(self) -> None:
+        self.inner.connect()
+
+    def read_positions(self) -> np.ndarray:
+        return self.inner.read_positions()
+
+    def set_torque(self, on: bool) -> None:
+        self.inner.set_torque(on)
+
+    def write_goal(self, q_rad: np.ndarray) -> None:
+        self.inner.write_goal(q_rad)
+        self.inner.advance(1.0 / self.control_rate_hz)
+
+    def disconnect(self) -> None:
+        self.inner.disconnect()
+
+    def shutdown(self) -> None:
+        self.inner.shutdown()
+
+
+class UtteranceHandle:
+    """One utterance given to a :class:`Robot`: its events, and a way to wait for it.
+
+    ``events``: dicts with ``type`` (see :data:`EVENT_TYPES`; also ``audio_chunk`` when the session cannot
+    play audio itself: ``offset_s`` into the utterance and the ``t_monotonic_s`` it should start playing) and
+    ``t_monotonic_s``; ``first_goal`` is the first goal sent that departs from the pose held before.
+    """
+
+    def __init__(self, kind: str) -> None:
+        self.id = next(_ids)
+        self.kind = kind
+        self._own: list[dict] = []
+        self._lock = threading.Lock()
+        self._attached = threading.Event()
+        self._play: Any = None
+        self._abandoned = False
+        self.trajectory: Any = None  #: the Trajectory played (or the growing feed of a stream)
+
+    def _add(self, type_: str, t: float | None = None, **extra: Any) -> None:
+        with self._lock:
+            self._own.append({"type": type_, "t_monotonic_s": time.monotonic() if t is None else t, **extra})
+
+    def _attach(self, play: Any) -> None:
+        self._play = play
+        self._attached.set()
+
+    def _abandon(self, why: str) -> None:
+        """Nothing will be played (e.g. interrupted before the first motion was planned; the caller resumes idle)."""
+        self._abandoned = True
+        self._add("interrupted", reason=why)
+        self._attached.set()
+
+    @property
+    def events(self) -> list[dict]:
+        """All events so far, ordered by time."""
+        with self._lock:
+            out = list(self._own)
+        if self._play is not None:
+            for name, ev in list(self._play.events.items()):
+                out.append({"type": name, "t_monotonic_s": ev.monotonic_s})
+        return sorted(out, key=lambda e: e["t_monotonic_s"])
+
+    def event(self, type_: str) -> dict | None:
+        """The first event of ``type_``, or None."""
+        return next((e for e in self.events if e["type"] == type_), None)
+
+    @property
+    def done(self) -> bool:
+        """Finished: played to the end, interrupted, or failed."""
+        return self._abandoned or (self._play is not None and self._play.done)
+
+    @property
+    def interrupted(self) -> bool:
+        return self.event("interrupted") is not None
+
+    def wait(self, timeout_s: float | None = None) -> bool:
+        """Block until :attr:`done` (or ``timeout_s``); re-raises a backend failure. Returns :attr:`done`."""
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        while not self._attached.wait(0.05):  # short waits: signals reach the main thread between them
+            if deadline is not None and time.monotonic() >= deadline:
+                return False
+        if self._play is None:
+            return True
+        left = None if deadline is None else max(0.0, deadline - time.monotonic())
+        return bool(self._play.wait(left))
+
+
+class Robot:
+    """A robot that stays connected: say things, stream speech, interrupt, idle in between.
+
+    Parameters
+    ----------
+    name : str
+        Robot name (``robogest robots list``) or YAML path.
+    backend : str
+        ``sim`` (MuJoCo, paced in real time), ``dynamixel`` or ``feetech``.
+    port : str, optional
+        Serial port of a servo backend (default: the robot YAML's ``bus.port``).
+    idle : bool
+        Breathing and weight shift between utterances (:mod:`robogest.live.idle`); False holds rest.
+    idle_config : IdleConfig, optional
+        Rate and amplitude of the idle motion.
+    generator : str
+        Gesture generator for :meth:`say` (learned ones need ``checkpoint`` in ``generator_options``).
+        Streaming always uses ``rhythm``: learned generators are batch-only.
+    seed : int
+        Seed of the gesture choices.
+    lookahead_s : float
+        L of streamed speech, seconds (motion and audio are played this far behind the newest chunk).
+    rate_hz : float
+        Control-loop rate, Hz.
+    time_scale : float
+        Loop seconds per wall second (tests run faster than real time with > 1; audio is then not played).
+    audio : bool
+        Play speech through ``sounddevice`` when it and an output device exist.
+    voice, words_per_minute : str, int
+        eSpeak NG voice and rate for text.
+    baudrate : int, optional
+        Baud rate of a servo backend.
+    on_tick : callable (loop_s, goal_rad), optional
+        Called after every control tick with the goal ``(J,)`` radians sent (keep it short).
+    backend_options : dict, optional
+        More keyword options of the backend (e.g. ``lost_after_s`` of a servo backend).
+    warm_up : bool
+        Run the speech and planning code once in the background after opening, so the first utterance is as
+        fast as later ones.
+    """
+
+    def __init__(
+        self,
+        name: str = DEFAULT_ROBOT,
+        backend: str = "sim",
+        port: str | None = None,
+        *,
+        idle: bool = True,
+        idle_config: IdleConfig | None = None,
+        generator: str = "rhythm",
+        generator_options: dict | None = None,
+        seed: int = 0,
+        lookahead_s: float | None = None,
+        rate_hz: float = 100.0,
+        time_scale: float = 1.0,
+        audio: bool = True,
+        voice: str = "en-us",
+        words_per_minute: int = 160,
+        baudrate: int | None = None,
+        on_tick: Callable[[float, np.ndarray], None] | None = None,
+        backend_options: dict | None = None,
+        warm_up: bool = True,
+    ) -> None:
+        from robogest.robot.registry import find_robot
+        from robogest.speech.stream import DEFAULT_LOOKAHEAD_S
+
+        self.config = find_robot(name)
+        self.backend_name = backend
+        self.port = port
+        self.baudrate = baudrate
+        self.idle_enabled = bool(idle)
+        self.idle_config = idle_config or IdleConfig()
+        self.generator_name = generator
+        self.generator_options = dict(generator_options or {})
+        self.seed = seed
+        self.lookahead_s = DEFAULT_LOOKAHEAD_S if lookahead_s is None else float(lookahead_s)
+        self.rate_hz = rate_hz
+        self.time_scale = float(time_scale)
+        self.want_audio = audio and self.time_scale == 1.0
+        self.voice = voice
+        self.words_per_minute = words_per_minute
+        self.on_tick = on_tick
+        self.backend_options = dict(backend_options or {})
+        self.warm_up = warm_up
+        self.loop: Any = None
+        self.idle: IdleMotion | None = None
+        self.audio_note = ""  #: why speech audio is not played ("" when it is)
+        self._sd: Any = None
+        self._exit = contextlib.ExitStack()
+        self._current: UtteranceHandle | None = None
+        self._audio: AudioOut | None = None
+        self._stream: StreamUtterance | None = None
+        self._opened = False
+        self._say_lock = threading.Lock()
+
+    # --- life cycle --------------------------------------------------------------------------------
+    def open(self) -> Robot:
+        """Connect, hold the present pose with torque on, start the control loop (and the idle motion)."""
+        if self._opened:
+            return self
+        from threadpoolctl import threadpool_limits
+
+        from robogest.backends import get_backend_factory
+        from robogest.backends.control import ControlLoop
+        from robogest.generators import make_generator
+        from robogest.retarget import DirectionIK
+
+        # Small matrices, many threads: BLAS thread pools only fight the control loop for the cores.
+        threadpool_limits(limits=1, user_api="blas")
+        factory = get_backend_factory(self.backend_name)
+        # A session runs for hours: the simulator keeps no log of its own.
+        opts = {"record": False} if self.backend_name == "sim" else {"port": self.port, "baudrate": self.baudrate}
+        opts.update(self.backend_options)
+        be = factory(self.config, **opts)
+        if not be.realtime:
+            be = _PacedSim(be)
+        self._ik = DirectionIK(self.config)
+        self._rhythm = make_generator("rhythm")
+        self._generator = (
+            self._rhythm
+            if self.generator_name == "rhythm" and not self.generator_options
+            else make_generator(self.generator_name, **self.generator_options)
+        )
+        self._idle_ik = DirectionIK(self.config) if self.idle_enabled else None  # its own: built in the background
+        if self.want_audio:
+            self._sd, self.audio_note = open_output()
+            if self.audio_note:  # one line, once per session
+                print(f"robogest: speech audio is not played ({self.audio_note}); utterance events carry its "
+                      "play times", file=sys.stderr)  # fmt: skip
+        else:
+            self.audio_note = "audio off" if self.time_scale == 1.0 else "time_scale is not 1"
+        self.loop = ControlLoop(be, self.rate_hz, threaded=True, time_scale=self.time_scale, on_tick=self.on_tick)
+        self._opened = True
+        try:
+            self.loop.start()
+        except BaseException:
+            self.loop.close()
+            raise
+        self._warm = threading.Thread(target=self._background_start, daemon=True, name="robogest-warm-up")
+        self._warm.start()
+        return self
+
+    def _background_start(self) -> None:
+        """After the loop holds the robot: tabulate the idle motion (IK of its cycles) and start it, then warm up.
+
+        Both run here so the session is ready (holding rest, taking utterances) as early as possible.
+        """
+        if self._idle_ik is not None:
+            idle = IdleMotion(self.config, self.idle_config, retargeter=self._idle_ik)
+            with self._say_lock:
+                loop = self.loop
+                if not loop._closed and loop._error is None and (loop._rest is None or loop._rest.done):
+                    self.idle = idle
+                    loop.set_idle(self._idle_target)
+                else:
+                    self.idle = idle  # an interrupt in progress turns it on when it reaches rest
+        if self.warm_up:
+            self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Load and run the speech and planning code once (librosa's first calls compile and import a lot), so
+        the first utterance starts as fast as later ones. Runs in the background while the robot idles."""
+        from robogest.live.planner import StreamingPlanner
+        from robogest.speech.stream import SpeechStream
+
+        with contextlib.suppress(Exception):
+            sr = 16000
+            t = np.arange(int(0.8 * sr)) / sr
+            tone = (0.3 * np.sin(2 * np.pi * 180 * t) * (np.sin(2 * np.pi * 3 * t) > 0)).astype(np.float32)
+            st = SpeechStream(sr, lookahead_s=self.lookahead_s)
+            pl = StreamingPlanner(self.config, self._rhythm, self._ik, st)
+            for i in range(0, len(tone), 1600):
+                if st.feed(tone[i : i + 1600]):
+                    pl.plan()
+            st.close()
+            pl.plan()
+
+    def close(self) -> str | None:
+        """Stop any utterance, glide to rest, torque off, disconnect. Idempotent; returns why rest was not
+        reached, or None."""
+        if not self._opened or self.loop is None:
+            return None
+        self._stop_audio()
+        if self._stream is not None:
+            self._stream._dead = True
+        return self.loop.close()
+
+    def __enter__(self) -> Robot:
+        from robogest.backends.control import signals_end_at_rest
+
+        self._exit.enter_context(signals_end_at_rest())
+        try:
+            return self.open()
+        except BaseException:
+            self._exit.close()
+            raise
+
+    def __exit__(self, *exc: object) -> None:
+        try:
+            self.close()
+        finally:
+            self._exit.close()
+
+    # --- idle ---------------------------------------------------------------------------------------
+    def _idle_stop(self) -> None:
+        """Speech is coming: the idle motion fades out now (see :meth:`IdleMotion.stop`)."""
+        if self.idle is not None and self.loop is not None:
+            self.idle.stop(self.loop.now_s)
+
+    def _idle_resume(self) -> None:
+        """No speech after all (refused, abandoned, interrupted): the idle motion fades in again."""
+        if self.idle is not None and self.loop is not None:
+            self.idle.restart(self.loop.now_s)
+
+    def _idle_target(self, t_s: float) -> np.ndarray:
+        idle = self.idle
+        assert idle is not None
+        last = getattr(self, "_idle_last_s", None)
+        if last is None or t_s - last > 0.25:  # idle was not playing (late ticks skip less): fade in from zero
+            idle.restart(t_s)
+        self._idle_last_s = t_s
+        return idle.target(t_s)
+
+    # --- utterances ---------------------------------------------------------------------------------
+    def _check_open(self) -> None:
+        loop = self.loop
+        if loop is not None and loop._error is not None:
+            raise loop._error  # the backend failed: torque is already off
+        if not self._opened or loop is None or loop._closed:
+            raise InputError("robot session is not open (never opened, or closed); use `with Robot(...) as robot:`")
+
+    def say(
+        self,
+        text: str | None = None,
+        *,
+        audio: str | Path | None = None,
+        transcript: str | Path | None = None,
+        wait: bool = True,
+    ) -> UtteranceHandle:
+        """Speak ``text`` (eSpeak NG) or an ``audio`` file (with an optional ``transcript``) with gestures.
+
+        An utterance still playing is replaced (its handle gets ``interrupted``; the new one starts from
+        wherever the robot is, within every limit). Blocks until done when ``wait``.
+        """
+        from robogest.pipeline import DEFAULT_TRAJECTORY_FPS, load_speech_input, motion_to_trajectory
+
+        self._check_open()
+        h = UtteranceHandle("say")
+        h._add("requested")
+        self._idle_stop()
+        try:
+            speech = load_speech_input(
+                text=text, audio=audio, transcript=transcript, voice=self.voice, words_per_minute=self.words_per_minute
+            )
+            motion = self._generator.generate(speech, seed=self.seed)
+            traj, _, _ = motion_to_trajectory(
+                motion, self.config, silent_spans=speech.silent_spans, fps=DEFAULT_TRAJECTORY_FPS,
+                audio_path=str(speech.audio_path or ""),
+            )  # fmt: skip
+        except BaseException:
+            self._idle_resume()
+            raise
+        h.trajectory = traj
+        self._start(h, traj, lambda out: out.write(speech.audio), speech.sr)
+        if wait:
+            h.wait()
+        return h
+
+    def stream(self, sample_rate: int = 16000, lookahead_s: float | None = None) -> StreamUtterance:
+        """A streamed utterance: ``with robot.stream(16000) as s: s.feed(chunk, words=None)``."""
+        self._check_open()
+        return StreamUtterance(self, int(sample_rate), self.lookahead_s if lookahead_s is None else lookahead_s)
+
+    def _start(self, h: UtteranceHandle, traj: Any, fill: Callable[[AudioOut], None] | None, sr: int) -> None:
+        """Hand ``traj`` to the loop; audio (``fill`` writes it) starts when the trajectory does."""
+        self._stop_audio()
+        out = AudioOut(self._sd, sr)
+        if fill is not None:
+            fill(out)
+        play = self.loop.play(traj)
+
+        def on_start() -> None:  # in the loop's tick: keep short
+            played = out.start()
+            h._add("audio_start", played=played)
+
+        play.on_start = on_start
+        with self._say_lock:
+            self._current, self._audio = h, out
+        h._attach(play)
+
+    def _stop_audio(self) -> None:
+        with self._say_lock:
+            if self._audio is not None:
+                self._audio.stop()
+                self._audio = None
+
+    def interrupt(self, wait: bool = True) -> dict:
+        """Stop speaking now and glide to rest as fast as the limits allow (idle resumes after it).
+
+        Returns ``{"interrupt_s": t, "at_rest_s": t or None}`` (``time.monotonic()``); ``at_rest_s`` is set when
+        ``wait`` (the call blocks until rest is reached).
+        """
+        self._check_open()
+        t0 = time.monotonic()
+        self._stop_audio()
+        if self._stream is not None:
+            self._stream._interrupt()
+        rest = self.loop.interrupt()
+
+        def resume() -> None:
+            rest.wait()
+            if self.idle is not None and not self.loop._closed and self.loop._rest is rest:
+                self._idle_resume()
+                self.loop.set_idle(self._idle_target)
+
+        if not wait:
+            threading.Thread(target=resume, daemon=True, name="robogest-resume-idle").start()
+            return {"interrupt_s": t0, "at_rest_s": None}
+        resume()
+        return {"interrupt_s": t0, "at_rest_s": rest.events["done"].monotonic_s if "done" in rest.events else None}
+
+    def status(self) -> dict:
+        """Session state as plain data (what ``robogest serve`` answers to ``status``)."""
+        cur = self._current
+        loop = self.loop
+        return {
+            "robot": self.config.name,
+            "backend": self.backend_name,
+            "open": bool(self._opened and loop is not None and not loop._closed),
+            "speaking": bool(cur is not None and not cur.done),
+            "utterance": cur.id if cur is not None else None,
+            "idle": self.idle_enabled,
+            "audio": not self.audio_note,
+            "audio_note": self.audio_note,
+            "lookahead_s": self.lookahead_s,
+            "joints": list(self.config.joint_names),
+            "goal_rad": loop.goal_rad.tolist() if loop is not None and loop.limiter is not None else None,
+        }
+
+
+class StreamUtterance:
+    """A streamed utterance (see :meth:`Robot.stream`); a context manager that closes the stream on exit.
+
+    ``feed(chunk, words=None)``: mono int16/float32 PCM at ``sample_rate`` (10-100 ms per chunk), with optional
+    word timings ``(text, start_s, end_s)`` in seconds from the utterance start. Planning runs inside ``feed``
+    every ``update_s`` of audio. On leaving the block the stream is closed and the motion finishes; an exception
+    inside the block interrupts the robot (glide to rest) instead.
+    """
+
+    def __init__(self, robot: Robot, sample_rate: int, lookahead_s: float) -> None:
+        from robogest.live.planner import StreamingPlanner
+        from robogest.speech.stream import SpeechStream, pcm_to_float
+
+        self.robot = robot
+        self.sample_rate = sample_rate
+        self._pcm = pcm_to_float
+        self.speech = SpeechStream(sample_rate, lookahead_s=lookahead_s)
+        self.planner = StreamingPlanner(robot.config, robot._rhythm, robot._ik, self.speech, seed=robot.seed)
+        self.handle = UtteranceHandle("stream")
+        self.handle.trajectory = self.planner.feed
+        self._out = AudioOut(robot._sd, sample_rate)
+        self._chunks: list[tuple[float, int]] = []  # (offset_s, n_samples) of each chunk, for scheduling
+        self._offset_n = 0
+        self._playing = False
+        self._audio_t0: float | None = None  # monotonic start of the audio when the caller must play it
+        self._dead = False
+        self._closed = False
+        robot._stream = self
+        robot._stop_audio()
+        with robot._say_lock:
+            robot._current = self.handle
+
+    def __enter__(self) -> StreamUtterance:
+        return self
+
+    def __exit__(self, et: type[BaseException] | None, *exc: object) -> None:
+        if et is not None and not self._dead and self.robot.loop is not None and not self.robot.loop._closed:
+            with contextlib.suppress(Exception):
+                self.robot.interrupt(wait=issubclass(et, Exception))
+            return
+        self.close()
+
+    def _interrupt(self) -> None:
+        self._dead = True
+        if not self._playing:
+            self.handle._abandon("interrupt")
+
+    def feed(self, chunk: np.ndarray | bytes, words: Sequence[tuple[str, float, float]] | None = None) -> None:
+        """Add a chunk of speech (ignored once the utterance was interrupted)."""
+        if self._dead:
+            return
+        if self._closed:
+            raise InputError("stream: feed() after the stream was closed; open a new robot.stream()")
+        a = self._pcm(chunk)
+        if not self._chunks:
+            self.handle._add("first_chunk")
+            self.robot._idle_stop()
+        off = self._offset_n / self.sample_rate
+        self._chunks.append((off, a.shape[0]))
+        if self._audio_t0 is not None:
+            self.handle._add("audio_chunk", self._audio_t0 + off / self.robot.time_scale, offset_s=off,
+                             n_samples=a.shape[0])  # fmt: skip
+        self._offset_n += a.shape[0]
+        self._out.write(a)
+        if self.speech.feed(a, words):
+            self._plan()
+
+    def _plan(self) -> None:
+        if self.planner.plan() and not self._playing and not self._dead:
+            self._start()
+
+    def _start(self) -> None:
+        self._playing = True
+        r = self.robot
+        h = self.handle
+        # Start one update period from now, so the motion never waits for a plan that is still being made.
+        play = r.loop.play(self.planner.feed, start_at=r.loop.now_s + self.speech.update_s)
+        out = self._out
+
+        def on_start() -> None:  # in the loop's tick: keep short
+            played = out.start()
+            t = time.monotonic()
+            h._add("audio_start", t, played=played)
+            if not played:  # the caller plays it: when each chunk should start
+                self._audio_t0 = t
+                for off, n in self._chunks:
+                    h._add("audio_chunk", t + off / r.time_scale, offset_s=off, n_samples=n)
+
+        play.on_start = on_start
+        with r._say_lock:
+            r._audio = out
+        h._attach(play)
+
+    def close(self) -> UtteranceHandle:
+        """No more speech: plan the rest (ending at rest) and let it play out. Returns the handle."""
+        if self._closed or self._dead:
+            return self.handle
+        self._closed = True
+        self.speech.close()
+        self.planner.plan()
+        self.planner.feed.close()
+        if not self._playing:
+            if self.planner.feed.n_frames:
+                self._start()
+            else:
+                self.handle._abandon("no speech")
+                self.robot._idle_resume()
+        return self.handle
+
+    def wait(self, timeout_s: float | None = None) -> bool:
+        return self.handle.wait(timeout_s)
+
+    @property
+    def events(self) -> list[dict]:
+        return self.handle.events

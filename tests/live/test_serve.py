@@ -1,0 +1,158 @@
+"""`robogest serve` in its own process, driven by a real WebSocket client from this one."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from websockets.exceptions import InvalidStatus
+from websockets.sync.client import connect
+
+from robogest.cli.main import main
+
+ROOT = Path(__file__).resolve().parents[2]
+TOKEN = "s3cret"
+
+
+def _start(*extra: str) -> tuple[subprocess.Popen, str]:
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    cmd = [sys.executable, "-m", "robogest", "serve", "--listen", "127.0.0.1:0", "--no-idle", *extra]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
+    line = proc.stdout.readline()  # blocks until ready (or the process died)
+    if "ready on" not in line:
+        proc.kill()
+        raise AssertionError(f"serve did not start: {line!r} {proc.stderr.read()}")
+    return proc, line.split("ready on ")[1].split()[0]
+
+
+@pytest.fixture(scope="module")
+def server():
+    proc, url = _start("--token", TOKEN, "--allow-origin", "http://localhost:3000", "--time-scale", "2")
+    yield proc, url
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(60)
+
+
+def _client(url: str, **kw):
+    return connect(url, additional_headers={"Authorization": f"Bearer {TOKEN}"}, open_timeout=30, **kw)
+
+
+_EVENTS: dict[int, list[str]] = {}  # utterance -> events received so far (whoever was waiting for what)
+
+
+def _next(ws, deadline: float) -> dict:
+    msg = json.loads(ws.recv(timeout=max(0.1, deadline - time.monotonic())))
+    if msg["type"] == "event":
+        _EVENTS.setdefault(msg["utterance"], []).append(msg["event"])
+    return msg
+
+
+def _recv(ws, want: str, timeout_s: float = 60.0) -> dict:
+    """Next message of type ``want`` (others are skipped; events are kept in _EVENTS)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        msg = _next(ws, deadline)
+        if msg["type"] == want:
+            return msg
+
+
+def _until_event(ws, utterance: int, event: str, timeout_s: float = 120.0) -> set[str]:
+    """Wait until ``utterance`` reported ``event``; all its events so far."""
+    deadline = time.monotonic() + timeout_s
+    while event not in _EVENTS.get(utterance, []):
+        _next(ws, deadline)
+    return set(_EVENTS[utterance])
+
+
+def test_malformed_messages_get_errors_and_the_session_keeps_running(server):
+    _, url = server
+    with _client(url) as ws:
+        hello = _recv(ws, "hello")
+        assert hello["protocol"] == 1 and hello["robot"] == "humanoid_xl430" and hello["open"]
+        for bad, match in [
+            ("{not json", "not JSON"),
+            ('["say"]', 'string "type"'),
+            ('{"type": "dance"}', "unknown message type 'dance'"),
+            ('{"type": "say", "text": 3}', '"text" must be a string'),
+            ('{"type": "stream_start", "format": "mp3"}', "not supported"),
+            ('{"type": "stream_end"}', "without an open stream"),
+        ]:
+            ws.send(bad)
+            assert match in _recv(ws, "error")["message"]
+        ws.send(b"\x00\x01\x02")  # PCM with no stream open
+        assert "stream_start" in _recv(ws, "error")["message"]
+        ws.send('{"type": "say"}')  # neither text nor audio: the pipeline's own one-line error
+        assert "either TEXT" in _recv(ws, "error")["message"]
+        ws.send('{"type": "status"}')
+        status = _recv(ws, "status")
+        assert status["open"] and len(status["goal_rad"]) == 11
+
+
+def test_say_stream_and_interrupt_push_events(server):
+    _, url = server
+    with _client(url) as ws:
+        _recv(ws, "hello")
+        ws.send(json.dumps({"type": "say", "text": "Hi there.", "id": "a"}))
+        acc = _recv(ws, "accepted")
+        assert acc["id"] == "a"
+        seen = _until_event(ws, acc["utterance"], "done")
+        assert {"requested", "first_goal", "started", "audio_start", "done"} <= seen
+
+        # streamed speech: 20 ms int16 frames of a voiced tone with pauses
+        sr = 16000
+        t = np.arange(int(1.5 * sr)) / sr
+        tone = 0.3 * np.sin(2 * np.pi * 160 * t) * (np.sin(2 * np.pi * 2.5 * t) > -0.3)
+        pcm = np.round(tone * 32767).astype("<i2").tobytes()
+        ws.send(json.dumps({"type": "stream_start", "sample_rate": sr, "format": "int16"}))
+        acc = _recv(ws, "accepted")
+        for i in range(0, len(pcm), 640):
+            ws.send(pcm[i : i + 640])
+        ws.send(json.dumps({"type": "words", "words": [["hello", 0.1, 0.5]]}))
+        ws.send(json.dumps({"type": "stream_end"}))
+        seen = _until_event(ws, acc["utterance"], "done")
+        assert {"first_chunk", "first_goal", "started", "audio_chunk", "done"} <= seen
+
+        ws.send(json.dumps({"type": "say", "text": "This sentence is interrupted before it ends, on purpose."}))
+        acc = _recv(ws, "accepted")
+        _until_event(ws, acc["utterance"], "first_goal")
+        ws.send('{"type": "interrupt"}')
+        res = _recv(ws, "interrupted")
+        assert res["at_rest_s"] >= res["interrupt_s"]
+        assert "done" not in _until_event(ws, acc["utterance"], "interrupted")
+
+
+def test_handshakes_without_token_or_from_a_web_page_are_refused(server):
+    _, url = server
+    with pytest.raises(InvalidStatus) as e:
+        connect(url, open_timeout=30)
+    assert e.value.response.status_code == 401
+    with pytest.raises(InvalidStatus) as e:
+        _client(url, origin="http://evil.example")
+    assert e.value.response.status_code == 403
+    with _client(url, origin="http://localhost:3000") as ws:  # explicitly allowed
+        assert _recv(ws, "hello")["open"]
+    with connect(url + f"?token={TOKEN}", open_timeout=30) as ws:
+        assert _recv(ws, "hello")["open"]
+
+
+def test_sigterm_ends_the_server_at_rest_with_torque_off(server):
+    proc, _ = server
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(60) == 143
+    err = proc.stderr.read()
+    assert "SIGTERM" in err and "Traceback" not in err
+
+
+def test_non_loopback_listen_needs_a_token(capsys):
+    assert main(["serve", "--listen", "0.0.0.0:8765"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--token" in err[0]
+    assert main(["serve", "--listen", "nonsense"]) == 2
