@@ -58,6 +58,7 @@ def parse_options(items: list[str]) -> dict[str, object]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from robogest.generators.learned import get_model_spec
     from robogest.learn.trainer import TrainConfig, train
 
     kwargs = {"dim": 16} if args.text_encoder == "hash-test" else {}
@@ -78,6 +79,6 @@ def run(args: argparse.Namespace) -> int:
         cache_dir=args.cache_dir,
         model_overrides=parse_options(args.options),
     )
-    best = train(cfg)
+    best = train(cfg, get_model_spec(args.model))
     print(f"best checkpoint: {best}")
     return 0

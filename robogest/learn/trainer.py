@@ -28,7 +28,7 @@ from robogest.data.features import FeatureConfig
 from robogest.data.prep import Normalization, make_windows, split_takes
 from robogest.errors import InputError
 from robogest.learn import dist as D
-from robogest.learn import get_model_spec, require_torch
+from robogest.learn import require_torch
 from robogest.learn.checkpoint import load_checkpoint, make_checkpoint, save_checkpoint
 
 
@@ -188,16 +188,19 @@ def _batches(n: int, batch: int, generator, info: D.DistInfo) -> list[np.ndarray
     return out
 
 
-def train(cfg: TrainConfig, log: Callable[[str], None] | None = None) -> Path:
-    """Run training; returns the path of the best checkpoint.
+def train(cfg: TrainConfig, spec: ModelSpec, log: Callable[[str], None] | None = None) -> Path:
+    """Run training of the model ``spec`` describes (``robogest.generators.learned.get_model_spec(cfg.model)``);
+    returns the path of the best checkpoint.
 
     Raises
     ------
     InputError
-        Bad folder, too little data for one window, a resume checkpoint of another model or feature setup.
+        ``spec`` is not ``cfg.model``'s, bad folder, too little data for one window, a resume checkpoint of another
+        model or feature setup.
     """
     torch = require_torch()
-    spec: ModelSpec = get_model_spec(cfg.model)
+    if spec.name != cfg.model:
+        raise InputError(f"TrainConfig names model {cfg.model!r} but the spec is {spec.name!r}'s")
     info, device = D.setup(cfg.device)
     say = (log or (lambda s: print(s, flush=True))) if info.is_main else (lambda s: None)
     try:

@@ -11,9 +11,9 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from robogest.data import FeatureConfig, discover_takes, load_take, make_fixture_dataset  # noqa: E402
-from robogest.generators import s2ag as S  # noqa: E402
+from robogest.generators.learned import s2ag as S  # noqa: E402
 from robogest.motion.human_motion import HumanMotion  # noqa: E402
-from tests.learn.conftest import HASH16  # noqa: E402
+from tests.generators.learned.conftest import HASH16  # noqa: E402
 
 #: Narrower GRUs (same structure) so training fits the test budget on two CPU cores; paper sizes are checked below.
 SMALL = {"d_gen": 64, "d_disc": 64, "gru_layers": 1}
@@ -49,14 +49,15 @@ def two_speakers(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def trained(two_speakers, tmp_path_factory):
     """``(TrainConfig, best checkpoint)`` of a short overfit run on both takes (no validation split)."""
-    from robogest.learn.trainer import TrainConfig, train
+    from robogest.generators.learned import train_model
+    from robogest.learn.trainer import TrainConfig
 
     out = tmp_path_factory.mktemp("s2ag_run")
     cfg = TrainConfig(
         model="s2ag", data=str(two_speakers), out=str(out), epochs=EPOCHS, batch_size=32, window_stride=2,
         val_fraction=0.0, device="cpu", cache_dir=str(out / "cache"), model_overrides=OVERFIT, **HASH16,
     )  # fmt: skip
-    return cfg, train(cfg, log=lambda s: None)
+    return cfg, train_model(cfg, log=lambda s: None)
 
 
 def _take(root: Path, cache: Path, name: str):

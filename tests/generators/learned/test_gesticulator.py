@@ -11,7 +11,7 @@ from robogest.errors import MissingDependencyError
 
 torch = pytest.importorskip("torch")
 
-from robogest.generators.gesticulator import (  # noqa: E402
+from robogest.generators.learned.gesticulator import (  # noqa: E402
     SPEC,
     GesticulatorConfig,
     GesticulatorNet,
@@ -94,7 +94,7 @@ def test_stream_equals_batch():
     """infer_stream (frame by frame, 1 s look-ahead) gives the same poses as predict on the whole input."""
     from robogest.data import FeatureConfig
     from robogest.data.prep import Normalization
-    from robogest.generators.gesticulator import GesticulatorGenerator
+    from robogest.generators.learned.gesticulator import GesticulatorGenerator
 
     net = _small()
     with torch.no_grad():
@@ -114,7 +114,7 @@ def test_stream_look_ahead_is_one_second():
     """The pose of frame 0 comes out when frame 19 (the 20th, 1 s at 20 fps) has been read."""
     from robogest.data import FeatureConfig
     from robogest.data.prep import Normalization
-    from robogest.generators.gesticulator import GesticulatorGenerator
+    from robogest.generators.learned.gesticulator import GesticulatorGenerator
 
     norm = Normalization(
         np.zeros(4, np.float32), np.ones(4, np.float32), np.zeros(6, np.float32), np.ones(6, np.float32)
@@ -134,9 +134,10 @@ def test_stream_look_ahead_is_one_second():
 
 def test_missing_torch_raises_install_hint(monkeypatch):
     monkeypatch.setitem(sys.modules, "torch", None)  # makes `import torch` fail
-    monkeypatch.delitem(sys.modules, "robogest.generators.gesticulator", raising=False)
+    for name in [m for m in sys.modules if m.startswith("robogest.generators.learned.gesticulator")]:
+        monkeypatch.delitem(sys.modules, name)
     with pytest.raises(MissingDependencyError, match=r"pip install 'robogest\[learn\]'"):
-        import robogest.generators.gesticulator  # noqa: F401
+        import robogest.generators.learned.gesticulator  # noqa: F401
     from robogest.learn import require_torch
 
     with pytest.raises(MissingDependencyError, match="robogest\\[learn\\]"):
@@ -145,7 +146,7 @@ def test_missing_torch_raises_install_hint(monkeypatch):
 
 def test_generator_without_checkpoint_is_input_error(tmp_path):
     from robogest.errors import InputError
-    from robogest.generators.gesticulator import GesticulatorGenerator
+    from robogest.generators.learned.gesticulator import GesticulatorGenerator
 
     with pytest.raises(InputError, match="--checkpoint"):
         GesticulatorGenerator()

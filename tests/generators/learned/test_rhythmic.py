@@ -8,7 +8,9 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from robogest.data import FeatureConfig, discover_takes, load_take  # noqa: E402
-from robogest.data.blocks import (  # noqa: E402
+from robogest.data.fixtures import FIXTURE_GESTURE  # noqa: E402
+from robogest.data.prep import Normalization  # noqa: E402
+from robogest.generators.learned.rhythmic.blocks import (  # noqa: E402
     block_fraction,
     clip_bounds,
     denormalize_blocks,
@@ -16,10 +18,8 @@ from robogest.data.blocks import (  # noqa: E402
     resample_clip,
     tsm_mel_blocks,
 )
-from robogest.data.fixtures import FIXTURE_GESTURE  # noqa: E402
-from robogest.data.prep import Normalization  # noqa: E402
 from robogest.motion.skeleton import CANONICAL  # noqa: E402
-from tests.learn.conftest import HASH16, RHYTHMIC_SMALL  # noqa: E402
+from tests.generators.learned.conftest import HASH16, RHYTHMIC_SMALL  # noqa: E402
 
 SMALL = RHYTHMIC_SMALL
 K = 10  # D_M = 0.5 s at 20 fps
@@ -40,14 +40,15 @@ def takes_and_speech(fixture_data, tmp_path_factory):
 def rhythmic_run(fixture_data, tmp_path_factory):
     """Best checkpoint of one short overfit run on the fixture (no validation split): the four stages one after
     another (4 + 6 + 11 + 9 epochs)."""
-    from robogest.learn.trainer import TrainConfig, train
+    from robogest.generators.learned import train_model
+    from robogest.learn.trainer import TrainConfig
 
     out = tmp_path_factory.mktemp("rrun")
     cfg = TrainConfig(
         model="rhythmic", data=str(fixture_data), out=str(out), epochs=30, lr=2e-3, batch_size=8, window_stride=6,
         val_fraction=0.0, device="cpu", cache_dir=str(out / "cache"), model_overrides=SMALL, **HASH16,
     )  # fmt: skip
-    return train(cfg, log=lambda s: None)
+    return train_model(cfg, log=lambda s: None)
 
 
 def _moving(poses: np.ndarray) -> np.ndarray:
@@ -139,7 +140,7 @@ def _no_words(take):
 def test_take_without_words_yields_silent_and_speech_blocks(takes_and_speech):
     """Without any transcript the training windows still mark silent blocks (mostly quiet, §6.4.1) and speech
     blocks; with the transcript a block is silent exactly when it overlaps no word."""
-    from robogest.generators.rhythmic_learned import SPEC, RhythmicConfig, RhythmicNet, take_rhythm
+    from robogest.generators.learned.rhythmic import SPEC, RhythmicConfig, RhythmicNet, take_rhythm
 
     takes = [t for t, _ in takes_and_speech]
     norm = Normalization.fit(takes)
@@ -166,7 +167,7 @@ def test_take_without_words_yields_silent_and_speech_blocks(takes_and_speech):
 
 # ------------------------------------------------------------------------------------------------ lexicon
 def test_vq_vae_reconstruction_falls_and_codebook_is_used(takes_and_speech):
-    from robogest.generators.rhythmic_learned import MotionVQ, RhythmicConfig
+    from robogest.generators.learned.rhythmic import MotionVQ, RhythmicConfig
 
     takes = [t for t, _ in takes_and_speech]
     norm = Normalization.fit(takes)
@@ -193,7 +194,7 @@ def test_vq_vae_reconstruction_falls_and_codebook_is_used(takes_and_speech):
 
 # ------------------------------------------------------------------------------------------------ trained model
 def _gt_codes(gen, take, speech):
-    from robogest.generators.rhythmic_learned import take_rhythm
+    from robogest.generators.learned.rhythmic import take_rhythm
 
     bounds, _ = take_rhythm(gen.norm.acoustic(take.acoustic)[:, :64], take.acoustic[:, :64], take.text, gen.config)
     assert np.array_equal(bounds, gen.generate_blocks(speech).bounds)
@@ -210,7 +211,7 @@ def test_generator_overfits_a_training_take(rhythmic_run, takes_and_speech):
     RMSE on the moving joints below 0.7x their standard deviation (the mean pose scores 1.0x; measured 0.37-0.62x
     over runs), with the blocks chained on the model's own previous blocks and denormalised.
     """
-    from robogest.generators.rhythmic_learned import RhythmicGenerator
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
 
     gen = RhythmicGenerator(rhythmic_run)
     take, speech = takes_and_speech[0]
@@ -225,7 +226,7 @@ def test_generator_overfits_a_training_take(rhythmic_run, takes_and_speech):
 
 def test_interpreter_picks_the_silent_lexeme_in_silent_blocks(rhythmic_run, takes_and_speech):
     """Without the run-time hint, the learned interpreter itself chooses silent lexemes on empty-word blocks."""
-    from robogest.generators.rhythmic_learned import RhythmicGenerator
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
 
     gen = RhythmicGenerator(rhythmic_run)
     silent = gen.model.silent_mask().numpy()
@@ -251,7 +252,7 @@ def test_inference_blocks_equal_training_blocks(rhythmic_run, takes_and_speech, 
     the audio blocks are the same time-scaled audio: both go through take_blocks (take_rhythm, tsm_mel_blocks)."""
     import dataclasses
 
-    from robogest.generators.rhythmic_learned import SPEC, RhythmicGenerator, take_blocks
+    from robogest.generators.learned.rhythmic import SPEC, RhythmicGenerator, take_blocks
 
     gen = RhythmicGenerator(rhythmic_run)
     c = gen.config
@@ -278,7 +279,7 @@ def test_inference_blocks_equal_training_blocks(rhythmic_run, takes_and_speech, 
 def test_lexeme_entropy_and_pmb_from_generated_blocks(rhythmic_run, takes_and_speech):
     """The evaluation metrics of §7.3 (robogest.eval) run on the generator's output."""
     from robogest.eval import lexeme_entropy, motion_beats, pmb
-    from robogest.generators.rhythmic_learned import RhythmicGenerator
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
 
     gen = RhythmicGenerator(rhythmic_run)
     _, speech = takes_and_speech[1]
@@ -298,7 +299,7 @@ def test_train_cli_and_generate_text_and_audio_only(fixture_data, tmp_path):
     import json
 
     from robogest.cli.main import main
-    from robogest.generators.rhythmic_learned import RhythmicGenerator
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
     from robogest.learn.checkpoint import load_checkpoint
     from robogest.speech import synthesize
 
@@ -330,7 +331,7 @@ def test_train_cli_and_generate_text_and_audio_only(fixture_data, tmp_path):
 
 def test_bad_options_and_missing_checkpoint_are_input_errors(tmp_path):
     from robogest.errors import InputError
-    from robogest.generators.rhythmic_learned import SPEC, RhythmicGenerator
+    from robogest.generators.learned.rhythmic import SPEC, RhythmicGenerator
 
     with pytest.raises(InputError, match="unknown rhythmic option"):
         SPEC.make_config(69, 16, 51, {"nope": 1})
@@ -346,7 +347,7 @@ def test_bad_options_and_missing_checkpoint_are_input_errors(tmp_path):
 
 def test_paper_widths_are_the_defaults():
     """§5.3 and §7.1.2: H = 64, C = 128, d_m~ = d_a~ = 128, d_s = 192, d_z = d_P = 32, N_s = 50, lr 3e-4, D_M 0.5 s."""
-    from robogest.generators.rhythmic_learned import RhythmicConfig
+    from robogest.generators.learned.rhythmic import RhythmicConfig
 
     c = RhythmicConfig()
     got = (c.latent_groups, c.latent_classes, c.motion_feat_dim, c.audio_feat_dim, c.lexeme_dim, c.style_dim,
@@ -356,7 +357,7 @@ def test_paper_widths_are_the_defaults():
 
 def test_plan_epochs_gives_every_stage_its_share():
     from robogest.errors import InputError
-    from robogest.generators.rhythmic_learned import SPEC
+    from robogest.generators.learned.rhythmic import SPEC
 
     def ends(epochs, **kw):
         return SPEC.plan_epochs(SPEC.make_config(69, 16, 51, kw), epochs).stage_ends
@@ -377,7 +378,7 @@ def test_plan_epochs_gives_every_stage_its_share():
 
 def test_each_sequential_stage_trains_only_its_own_part(takes_and_speech):
     """In training mode the loss at an epoch of stage X gives gradients to X's parameters and to nothing else."""
-    from robogest.generators.rhythmic_learned import SPEC, STAGES, RhythmicNet
+    from robogest.generators.learned.rhythmic import SPEC, STAGES, RhythmicNet
 
     takes = [t for t, _ in takes_and_speech]
     norm = Normalization.fit(takes)
@@ -405,15 +406,16 @@ def test_resumed_run_keeps_its_stage_plan(fixture_data, tmp_path):
     """A run resumed with more epochs keeps the checkpoint's stage plan: the extra epochs train the interpreters."""
     import json
 
+    from robogest.generators.learned import train_model
     from robogest.learn.checkpoint import load_checkpoint
-    from robogest.learn.trainer import TrainConfig, train
+    from robogest.learn.trainer import TrainConfig
 
     kw = dict(
         model="rhythmic", data=str(fixture_data), out=str(tmp_path / "r"), batch_size=16, window_stride=20,
         val_fraction=0.0, device="cpu", cache_dir=str(tmp_path / "c"), model_overrides=SMALL, **HASH16,
     )  # fmt: skip
-    train(TrainConfig(epochs=4, **kw), log=lambda s: None)
-    best = train(TrainConfig(epochs=6, resume=True, **kw), log=lambda s: None)
+    train_model(TrainConfig(epochs=4, **kw), log=lambda s: None)
+    best = train_model(TrainConfig(epochs=6, resume=True, **kw), log=lambda s: None)
     history = json.loads((tmp_path / "r" / "history.json").read_text())
     assert [h["stage"] for h in history] == ["encoder", "lexicon", "generator"] + ["interpreters"] * 3
     assert list(load_checkpoint(best)["model_config"]["stage_ends"]) == [1, 2, 3, 4]

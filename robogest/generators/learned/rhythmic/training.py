@@ -1,0 +1,121 @@
+"""The trainer's view of the Rhythmic Gesticulator (:class:`robogest.learn.trainer.ModelSpec`): staged epochs and
+beat-block windows."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from robogest.data.features import FeatureConfig
+from robogest.data.prep import slice_windows
+from robogest.errors import InputError
+from robogest.generators.learned.rhythmic.config import STAGES, RhythmicConfig
+from robogest.generators.learned.rhythmic.model import RhythmicNet
+from robogest.generators.learned.rhythmic.networks import AUDIO_ENCODERS
+from robogest.generators.learned.rhythmic.take import take_blocks
+from robogest.learn import config_with_overrides
+
+
+class RhythmicSpec:
+    """The trainer's view of the model (:class:`robogest.learn.trainer.ModelSpec`)."""
+
+    name = "rhythmic"
+
+    def make_config(self, n_acoustic: int, n_text: int, n_pose: int, overrides: dict[str, Any]) -> RhythmicConfig:
+        front = FeatureConfig().speech_config()  # the trainer's feature front-end: its rate and mel analysis
+        fixed = {"n_acoustic": n_acoustic, "n_text": n_text, "n_pose": n_pose, "n_mels": front.n_mels,
+                 "audio_sr": front.sr, "mel_window_s": front.mel_window_s, "fps": front.fps}  # fmt: skip
+        return config_with_overrides(RhythmicConfig, "rhythmic", overrides, **fixed)
+
+    def config_from_dict(self, d: dict[str, Any]) -> RhythmicConfig:
+        return RhythmicConfig.from_dict(d)
+
+    def plan_epochs(self, config: RhythmicConfig, epochs: int) -> RhythmicConfig:
+        """Give each stage its share of ``epochs`` (at least one each) when training sequentially.
+
+        Raises
+        ------
+        InputError
+            Fewer epochs than stages.
+        """
+        if config.stages == "joint":
+            return config
+        trainable = AUDIO_ENCODERS[config.audio_encoder].trainable
+        present = [
+            w > 0 and (name != "encoder" or trainable) for name, w in zip(STAGES, config.stage_weights, strict=True)
+        ]
+        names = [name for name, p in zip(STAGES, present, strict=True) if p]
+        if epochs < len(names):
+            raise InputError(
+                f"the rhythmic model trains its stages ({', '.join(names)}) one after another and needs --epochs >= "
+                f"{len(names)} (got {epochs}); or train them together with --set stages=joint"
+            )
+        weights = np.array([w if p else 0.0 for w, p in zip(config.stage_weights, present, strict=True)])
+        share = (epochs - len(names)) * weights / weights.sum()  # the epochs beyond one per stage, by weight
+        alloc = np.floor(share).astype(int) + np.asarray(present, int)
+        for j in np.argsort(-(share - np.floor(share)))[: epochs - int(alloc.sum())]:  # largest remainders
+            alloc[j] += 1
+        return dataclasses.replace(config, stage_ends=tuple(int(e) for e in np.cumsum(alloc)))
+
+    def first_best_epoch(self, config: RhythmicConfig) -> int:
+        """``best.pt`` is chosen among the epochs of the last stage, when every part has been trained."""
+        return config.stage_ends[-2] if config.stage_at(0) is not None else 0
+
+    def stage_name(self, epoch: int, config: RhythmicConfig) -> str:
+        return config.stage_at(epoch) or "all stages"
+
+    def build(self, config: RhythmicConfig) -> RhythmicNet:
+        return RhythmicNet(config)
+
+    def sequence_length(self, config: RhythmicConfig) -> int:
+        return config.window_blocks * config.block
+
+    def make_windows(self, takes, norm, config: RhythmicConfig, length: int, stride: int):
+        """Windows of ``length // K`` consecutive beat blocks of each whole take (:func:`take_blocks`).
+
+        Beats and silent blocks are found once on the whole take, as at run time on the whole speech. The audio
+        blocks come from each take's recording, time-scaled and re-analysed (a take without ``audio_path``: from
+        its log-mel frames). Consecutive windows start about ``stride`` frames apart (``stride`` over the take's
+        mean clip length, in blocks).
+
+        Returns
+        -------
+        x : ndarray [shape=(N, W * K, n_mels + D + 1)], float32
+            Standardised time-scaled log-mel, raw text, silent-block flag; block ``w`` is frames ``[w K, (w + 1) K)``.
+        y : ndarray [shape=(N, W * K, P)], float32
+            Normalised poses.
+        take_index : ndarray [shape=(N,)], int
+        """
+        k, m = config.block, config.n_mels
+        w = length // k
+        xs, ys, idx = [], [], []
+        for i, t in enumerate(takes):
+            audio = t.read_audio(config.audio_sr) if config.audio_tsm and t.audio_path is not None else None
+            tb = take_blocks(t.acoustic[:, :m], t.text, norm, config, audio, t.poses)
+            n_c = tb.silent.shape[0]
+            if n_c < w:
+                continue
+            flag = np.broadcast_to(tb.silent[:, None, None], (n_c, k, 1))
+            x = np.concatenate([tb.mel, tb.text, flag], axis=2).reshape(n_c, -1)  # (C, K, F) -> (C, K * F)
+            y = tb.poses.reshape(n_c, -1)  # (C, K, P) -> (C, K * P)
+            step = max(1, round(stride * n_c / t.n_frames))  # frames -> blocks
+            xw, yw, _ = slice_windows([(i, x, y)], w, step, x.shape[1], y.shape[1])  # (N_i, W, K * F)
+            xs.append(xw.reshape(xw.shape[0], w * k, -1))  # (N_i, W, K * F) -> (N_i, W * K, F)
+            ys.append(yw.reshape(yw.shape[0], w * k, -1))
+            idx.append(np.full(xw.shape[0], i))
+        if not xs:
+            f = m + config.n_text + 1
+            return (
+                np.zeros((0, w * k, f), np.float32),
+                np.zeros((0, w * k, config.n_pose), np.float32),
+                np.zeros(0, int),
+            )
+        return np.concatenate(xs), np.concatenate(ys), np.concatenate(idx)
+
+    def loss(self, model, speech, poses, epoch: int, config: RhythmicConfig):
+        return model(speech, poses, epoch)  # through the (possibly DDP) wrapper's forward
+
+
+SPEC = RhythmicSpec()
