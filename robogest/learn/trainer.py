@@ -68,12 +68,16 @@ class ModelSpec(Protocol):
 #: ``plan_epochs(config, epochs) -> config``
 #:     Fill epoch-dependent config fields (a schedule of training stages) from ``--epochs``; fresh runs only, so a
 #:     resumed run keeps the plan in its checkpoint.
+#: ``validation_loss(model, speech, poses, epoch, config) -> Tensor``
+#:     The held-out loss ``best.pt`` is chosen on, instead of :meth:`ModelSpec.loss`: an autoregressive model's
+#:     free-running rollout (its own outputs fed back, as at run time), not a teacher-forced one.
 #: ``first_best_epoch(config) -> int``
 #:     Epochs before this one (0-based) never become ``best.pt`` (e.g. before every stage has trained).
 #: ``stage_name(epoch, config) -> str``
 #:     What the epoch trains, for the log line and ``history.json``.
 OPTIONAL_SPEC_METHODS = (
-    "fit_config", "make_windows", "make_optimizers", "train_step", "plan_epochs", "first_best_epoch", "stage_name",
+    "fit_config", "make_windows", "make_optimizers", "train_step", "plan_epochs", "validation_loss",
+    "first_best_epoch", "stage_name",
 )  # fmt: skip
 
 
@@ -362,10 +366,11 @@ def _evaluate(spec, model, vx, vy, epoch, mcfg, device, batch, info, torch) -> f
     """Mean validation loss (rank 0 evaluates everything; NaN without validation windows)."""
     if vx.shape[0] == 0:
         return math.nan
+    loss = getattr(spec, "validation_loss", spec.loss)
     model.eval()
     total = 0.0
     with torch.no_grad():
         for s in range(0, vx.shape[0], batch):
             xb, yb = vx[s : s + batch].to(device), vy[s : s + batch].to(device)
-            total += float(spec.loss(model, xb, yb, epoch, mcfg)) * xb.shape[0]
+            total += float(loss(model, xb, yb, epoch, mcfg)) * xb.shape[0]
     return total / vx.shape[0]

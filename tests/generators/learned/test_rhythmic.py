@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,7 @@ torch = pytest.importorskip("torch")
 from robogest.data import FeatureConfig, discover_takes, load_take  # noqa: E402
 from robogest.data.fixtures import FIXTURE_GESTURE  # noqa: E402
 from robogest.data.prep import Normalization  # noqa: E402
+from robogest.errors import InputError  # noqa: E402
 from robogest.generators.learned.rhythmic.blocks import (  # noqa: E402
     block_fraction,
     clip_bounds,
@@ -293,8 +296,8 @@ def test_lexeme_entropy_and_pmb_from_generated_blocks(rhythmic_run, takes_and_sp
 
 def test_train_cli_and_generate_text_and_audio_only(fixture_data, tmp_path):
     """`robogest train --model rhythmic --set ...` (paper widths, one epoch per stage) writes a checkpoint; it
-    generates on text and audio-only speech with exactly the speech's frames, the same for the same seed and
-    different for another seed."""
+    generates on text and audio-only speech with exactly the speech's frames; by default the most likely lexeme
+    (the seed does not matter), with a lexeme temperature the same for the same seed and different for another."""
     import dataclasses
     import json
 
@@ -319,14 +322,19 @@ def test_train_cli_and_generate_text_and_audio_only(fixture_data, tmp_path):
     assert ckpt["train_state"]["next_epoch"] == 4  # best.pt comes from the last stage, when every part is trained
     assert ckpt["train_state"]["optimizers"]["optimizer"]["param_groups"][0]["lr"] == 3e-4  # the paper's, no --lr
     gen = RhythmicGenerator(out / "best.pt")
+    sampling = RhythmicGenerator(out / "best.pt", lexeme_temperature=1.0)
     speech = synthesize("Hello there, I am a robot ... and I wave.")
     for sp in (speech, dataclasses.replace(speech, words=())):
         motion = gen.generate(sp, seed=1)
         assert motion.n_frames == sp.n_frames and motion.fps == sp.fps
         assert np.isfinite(motion.rotations).all()
-        np.testing.assert_array_equal(gen.generate(sp, seed=1).rotations, motion.rotations)
+        np.testing.assert_array_equal(gen.generate(sp, seed=2).rotations, motion.rotations)  # most likely lexeme
+        sampled = sampling.generate(sp, seed=1)
+        np.testing.assert_array_equal(sampling.generate(sp, seed=1).rotations, sampled.rotations)
         # the seed drives the lexeme sampling: another seed gives other lexemes, hence other motion
-        assert not np.array_equal(gen.generate(sp, seed=2).rotations, motion.rotations)
+        assert not np.array_equal(sampling.generate(sp, seed=2).rotations, sampled.rotations)
+    with pytest.raises(InputError, match="lexeme_temperature=-1"):
+        RhythmicGenerator(out / "best.pt", lexeme_temperature=-1)
 
 
 def test_bad_options_and_missing_checkpoint_are_input_errors(tmp_path):
@@ -419,3 +427,39 @@ def test_resumed_run_keeps_its_stage_plan(fixture_data, tmp_path):
     history = json.loads((tmp_path / "r" / "history.json").read_text())
     assert [h["stage"] for h in history] == ["encoder", "lexicon", "generator"] + ["interpreters"] * 3
     assert list(load_checkpoint(best)["model_config"]["stage_ends"]) == [1, 2, 3, 4]
+
+
+def test_generator_trains_on_a_rollout_with_its_state_carried_over(takes_and_speech):
+    """Generator stage (as the authors' code): within a window each block is generated from the previous generated
+    block and the LSTM state after it; only the window's first block is ground truth. Eval (validation) runs the
+    same free rollout."""
+    from robogest.generators.learned.rhythmic import SPEC, RhythmicNet
+
+    takes = [t for t, _ in takes_and_speech]
+    norm = Normalization.fit(takes)
+    cfg = SPEC.plan_epochs(SPEC.make_config(69, takes[0].text.shape[1], 51, {**SMALL, "silent_augment": 0.0}), 4)
+    x, y, _ = SPEC.make_windows(takes, norm, cfg, cfg.window_blocks * K, 20)
+    xb, yb = torch.from_numpy(x[:3]), torch.from_numpy(y[:3])
+    torch.manual_seed(0)
+    net = RhythmicNet(cfg)
+    calls = []
+    real = net.gen.forward
+
+    def spy(prev, a3, s, z, state=None):
+        out, new_state = real(prev, a3, s, z, state)
+        calls.append((prev, state, out, new_state))
+        return out, new_state
+
+    net.gen.forward = spy
+    for mode in (net.train, net.eval):
+        mode()
+        calls.clear()
+        with torch.no_grad():
+            net(xb, yb, epoch=2)  # the generator stage in training; all stages in eval
+        chain = calls[: cfg.window_blocks - 2]  # the rollout; then eq. 12's one-step call
+        assert len(calls) == cfg.window_blocks - 1
+        first = yb.reshape(3 * cfg.window_blocks, K, -1)[:: cfg.window_blocks]
+        torch.testing.assert_close(chain[0][0], first)  # starts from each window's ground-truth context block
+        assert chain[0][1] is None
+        for (_, _, out, st), (prev, state, _, _) in itertools.pairwise(chain):
+            assert prev is out and state is st  # its own output and LSTM state go on

@@ -39,5 +39,13 @@ class GesticulatorSpec:
         target = poses[:, config.past : config.past + pred.shape[1]]  # (B, 40, P)
         return gesture_loss(pred, target)
 
+    def validation_loss(self, model, speech, poses, epoch: int, config: GesticulatorConfig):
+        """Loss of a free-running rollout from the mean pose, at every epoch (the authors' validation): the model's
+        own poses feed back as at run time, so ``best.pt`` is chosen on what generation will do, not on a
+        teacher-forced score (which from epoch 11 on sees the ground truth every frame)."""
+        pred = model(speech, None, period=1)  # no ground truth: period 1 feeds back its own poses
+        target = poses[:, config.past : config.past + pred.shape[1]]
+        return gesture_loss(pred, target)
+
 
 SPEC = GesticulatorSpec()

@@ -74,8 +74,9 @@ class RhythmicConfig:
         In a take (or speech) without any words, a word-free block is silent when more than this share of its
         frames are quiet (:func:`.blocks.silent_blocks`).
     lexeme_temperature : float
-        :meth:`RhythmicGenerator.generate` samples each lexeme from the interpreter's softmax at this temperature
-        with a generator seeded by ``seed`` (0: always the most likely lexeme, so ``seed`` has no effect).
+        0 (default, the paper): :meth:`RhythmicGenerator.generate` takes the interpreter's most likely lexeme, so
+        ``seed`` has no effect; > 0 (``--set lexeme_temperature=1`` at training, or the generator's
+        ``lexeme_temperature`` option) samples each lexeme from its softmax at this temperature, seeded by ``seed``.
     smooth_kernel : int
         Gaussian kernel (frames) applied to the denormalised output.
     """
@@ -122,7 +123,7 @@ class RhythmicConfig:
     silent_augment: float = 0.05
     silent_share: float = 0.5
     quiet_share: float = 0.5
-    lexeme_temperature: float = 1.0
+    lexeme_temperature: float = 0.0
     smooth_kernel: int = 5
 
     def __post_init__(self) -> None:

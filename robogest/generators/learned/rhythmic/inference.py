@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robogest.data.features import expmap_to_motion, speech_inputs
+from robogest.errors import InputError
 from robogest.generators.learned.checkpoint import CheckpointGenerator
 from robogest.generators.learned.rhythmic.blocks import denormalize_blocks, gaussian_smooth
 from robogest.generators.learned.rhythmic.config import TEXT_SCALE, RhythmicConfig
@@ -46,6 +47,12 @@ class RhythmicGenerator(CheckpointGenerator):
     name = "rhythmic"
     config_cls = RhythmicConfig
     net_cls = RhythmicNet
+
+    def configure(self, lexeme_temperature: float | None = None) -> None:
+        """``lexeme_temperature``: 0 the most likely lexeme, > 0 sample at that temperature; None: the config's."""
+        if lexeme_temperature is not None and not lexeme_temperature >= 0:
+            raise InputError(f"lexeme_temperature={lexeme_temperature!r}: must be >= 0 (0: the most likely lexeme)")
+        self.temperature = lexeme_temperature
 
     def generate_blocks(
         self,
@@ -106,7 +113,7 @@ class RhythmicGenerator(CheckpointGenerator):
             prev = torch.zeros(1, k, c.n_pose, device=dev)  # the mean pose (normalised zeros)
             s_prev = codebook[m.vq.quantize(m.vq.encode(prev))]  # (1, d_s)
             z_prev = torch.zeros(1, c.style_dim, device=dev)
-            out, lex_ids = [], np.zeros(n_b, int)
+            out, lex_ids, state = [], np.zeros(n_b, int), None
             for j in range(n_b):
                 if lexemes is not None:
                     lex = int(lexemes[j])
@@ -127,7 +134,7 @@ class RhythmicGenerator(CheckpointGenerator):
                     z = torch.zeros(1, c.style_dim, device=dev)  # silent blocks: z = 0 (§6.4.1)
                 else:
                     z = sty_net(a3[j : j + 1], txt[j : j + 1], torch.cat([z_prev, s], dim=1))
-                y = m.gen(prev, a3[j : j + 1], s, z)  # (1, K, P)
+                y, state = m.gen(prev, a3[j : j + 1], s, z, state)  # (1, K, P), LSTM state carried over
                 out.append(y[0])
                 lex_ids[j] = lex
                 prev, s_prev, z_prev = y, s, z
@@ -139,11 +146,13 @@ class RhythmicGenerator(CheckpointGenerator):
     def generate(self, speech: Speech, seed: int = 0) -> HumanMotion:
         """Motion at ``speech.fps`` with exactly ``speech.n_frames`` frames.
 
-        Each lexeme is sampled from the interpreter's softmax at ``config.lexeme_temperature`` with a torch
-        generator seeded by ``seed`` (the same seed gives the same motion, another seed other lexemes); silent
-        blocks still get the silent lexeme. The Gumbel latent takes its most likely categories.
+        Each lexeme is the interpreter's most likely one (the paper), or, with a lexeme temperature > 0 (the
+        ``lexeme_temperature`` option, else the checkpoint config's), sampled from its softmax at that temperature
+        with a torch generator seeded by ``seed`` (the same seed gives the same motion, another seed other lexemes);
+        silent blocks still get the silent lexeme. The Gumbel latent takes its most likely categories.
         """
         s = self.at_model_rate(speech)
         g = torch.Generator().manual_seed(int(seed))
-        plan = self.generate_blocks(s, temperature=self.config.lexeme_temperature, generator=g)
+        temperature = self.config.lexeme_temperature if self.temperature is None else self.temperature
+        plan = self.generate_blocks(s, temperature=temperature, generator=g)
         return expmap_to_motion(plan.poses, s.fps).resample(speech.fps, n_frames=speech.n_frames)

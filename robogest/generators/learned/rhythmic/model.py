@@ -66,7 +66,8 @@ class Blocks:
 
     ``mel`` ``(N, K, n_mels)``, ``text`` ``(N, K, D)`` (scaled: silence = -1), ``poses`` ``(N, K, P)``, ``empty``
     ``(N,)`` bool (silent block: :func:`.blocks.silent_blocks`); ``prev``, ``cur``, ``nxt`` ``(S,)``
-    block indices of the samples (every block but a window's first and last, which serve as context).
+    block indices of the samples (every block but a window's first and last, which serve as context), window by
+    window: sample ``w * (W - 2) + j`` is block ``j + 1`` of window ``w``.
     """
 
     mel: Any
@@ -76,6 +77,7 @@ class Blocks:
     prev: Any
     cur: Any
     nxt: Any
+    per_window: int
 
 
 class RhythmicNet(nn.Module):
@@ -172,6 +174,7 @@ class RhythmicNet(nn.Module):
             prev=cur - 1,
             cur=cur,
             nxt=cur + 1,
+            per_window=w - 2,
         )
 
     def forward(self, speech, poses, epoch: int = 0):
@@ -253,16 +256,25 @@ class RhythmicNet(nn.Module):
         return total
 
     def generator_losses(self, bl: Blocks, a_low, s_all, idx) -> dict[str, Any]:
-        """Eq. 9 (``"gen"``, with its parts for the log) on teacher-forced blocks plus inserted silent blocks:
+        """Eq. 9 (``"gen"``, with its parts for the log) on the generator's rollout over each window plus inserted
+        silent blocks.
+
+        Rollout (as the authors' code trains): each window's first block is the ground-truth context; every later
+        sample block is generated from the previous *generated* block with the decoder's LSTM state carried over
+        (:meth:`rollout`), so training sees the run-time chain and its drift. Inserted silent blocks (§6.4.1):
         after empty-word blocks, noise audio, z = 0, the nearest silent lexeme, the previous block's last pose held
-        still (§6.4.1). The paper inserts runs of 0-10 silent blocks; a block inside a run follows another silent
-        block, so :data:`SILENT_RUN_LATER` of the inserted blocks get the held pose as their previous block too."""
+        still; the paper inserts runs of 0-10 silent blocks and a block inside a run follows another silent block,
+        so :data:`SILENT_RUN_LATER` of the inserted blocks get the held pose as their previous block too (one
+        block each, fresh state)."""
         c = self.config
         p, i, n = bl.prev, bl.cur, bl.nxt
         a3 = torch.cat([a_low[p], a_low[i], a_low[n]], dim=2)  # (S, K, 3 d_a)
-        prev_m, target = bl.poses[p], bl.poses[i]
+        target = bl.poses[i]
         z = self.gen.style_code(target)  # (S, d_z)
         s = s_all[i]
+        n_real = i.numel()
+        gen = self.rollout(bl.poses[p[:: bl.per_window]], a3, s, z, bl.per_window)  # (S, K, P)
+        prev_m = bl.poses[p]
         after_empty = torch.nonzero(bl.empty[p]).flatten()
         silent_of_prev = self.nearest_silent(s_all[p])
         n_aug = round(c.silent_augment / max(1.0 - c.silent_augment, 1e-6) * i.numel())
@@ -276,16 +288,40 @@ class RhythmicNet(nn.Module):
             s = torch.cat([s, self.vq.codebook.detach()[silent_of_prev[pick]]])
             z = torch.cat([z, z.new_zeros(pick.numel(), c.style_dim)])
             target = torch.cat([target, still])
-        n_real = i.numel()
-
-        gen = self.gen(prev_m, a3, s, z)  # (S', K, P)
+        if prev_m.shape[0] > n_real:  # the inserted silent blocks, one step each from their held pose
+            extra, _ = self.gen(prev_m[n_real:], a3[n_real:], s[n_real:], z[n_real:])
+            gen = torch.cat([gen, extra])  # (S', K, P)
         l_rec = F.mse_loss(gen, target)
         l_perc = F.mse_loss(self.vq.encode(gen, frozen=True), self.vq.encode(target, frozen=True).detach())
         perm = torch.randperm(n_real, device=a_low.device)  # eq. 12: same lexeme, another block's other inputs
-        other = self.gen(prev_m[:n_real][perm], a3[:n_real][perm], s[:n_real], z[:n_real][perm])
+        other, _ = self.gen(prev_m[:n_real][perm], a3[:n_real][perm], s[:n_real], z[:n_real][perm])
         l_lex = F.mse_loss(self.vq.encode(other, frozen=True), s[:n_real])
         zr = z[:n_real]
         mu, var = zr.mean(0), zr.var(0, unbiased=False) + 1e-6
         l_z = 0.5 * (mu**2 + var - var.log() - 1.0).mean()  # eq. 14 on the batch statistics
         l_gen = c.w_rec * l_rec + c.w_perc * l_perc + c.w_lexeme * l_lex + c.w_z * l_z
         return {"gen": l_gen, "rec": l_rec, "perc": l_perc, "lexeme": l_lex, "kl": l_z}
+
+    def rollout(self, first_prev, a3, s, z, per_window: int):
+        """Generate each window's sample blocks one after another from its ground-truth context block.
+
+        Parameters
+        ----------
+        first_prev : Tensor [shape=(B, K, P)]
+            Each window's first (context) block.
+        a3, s, z : Tensor [shape=(S, ...)]
+            Per sample block (``S = B * per_window``, window by window): audio of blocks i-1, i, i+1, lexeme, style.
+
+        Returns
+        -------
+        Tensor [shape=(S, K, P)]
+            Block ``j`` of a window is generated from block ``j - 1``'s output and LSTM state.
+        """
+        b = first_prev.shape[0]
+        view = lambda x: x.reshape(b, per_window, *x.shape[1:])  # noqa: E731  (S, ...) -> (B, W - 2, ...)
+        a3, s, z = view(a3), view(s), view(z)
+        prev, state, outs = first_prev, None, []
+        for j in range(per_window):
+            prev, state = self.gen(prev, a3[:, j], s[:, j], z[:, j], state)  # (B, K, P)
+            outs.append(prev)
+        return torch.stack(outs, dim=1).flatten(0, 1)  # (B, W - 2, K, P) -> (S, K, P)

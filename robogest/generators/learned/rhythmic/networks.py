@@ -173,8 +173,8 @@ class BlockGenerator(nn.Module):
         """Per-block style code ``(B, d_z)`` of motion blocks ``(B, K, P)`` (stands in for one free z per block)."""
         return self.style(m.transpose(1, 2)).mean(dim=2)  # (B, d_z, K) -> (B, d_z)
 
-    def forward(self, prev, a_low3, s, z):
-        """One block.
+    def forward(self, prev, a_low3, s, z, state=None):
+        """One block, continuing the LSTM ``state`` of the previous block (None: a fresh start).
 
         Parameters
         ----------
@@ -185,10 +185,15 @@ class BlockGenerator(nn.Module):
         s : Tensor [shape=(B, d_s)]
             Lexeme vector.
         z : Tensor [shape=(B, d_z)]
+        state : tuple of Tensor, optional
+            The decoder LSTM's ``(h, c)`` after the previous block; the authors' generator runs block after block
+            with its state carried over.
 
         Returns
         -------
-        Tensor [shape=(B, K, P)]
+        motion : Tensor [shape=(B, K, P)]
+        state : tuple of Tensor
+            ``(h, c)`` after this block, for the next.
         """
         c = self.c
         b, k = prev.shape[0], c.block
@@ -205,8 +210,8 @@ class BlockGenerator(nn.Module):
             groups = torch.arange(c.latent_groups, device=logits.device)
             q = self.latent[groups, logits.argmax(-1)]  # (H,), (B, K, H) -> (B, K, H, d_g)
         q = q.reshape(b, k, -1)  # (B, K, H, d_g) -> (B, K, H * d_g)
-        h, _ = self.lstm(torch.cat([q, m_feat], dim=2))  # (B, K, hidden)
-        return self.out(h)  # (B, K, P)
+        h, state = self.lstm(torch.cat([q, m_feat], dim=2), state)  # (B, K, hidden)
+        return self.out(h), state  # (B, K, P)
 
 
 # --------------------------------------------------------------------------------------------------- interpreters

@@ -53,8 +53,11 @@ class S2AGConfig:
         MFCC values (37) and text-vector size per frame (384 for MiniLM).
     speakers : tuple of str
         Speaker keys (:func:`speaker_key`) in one-hot order; ``len`` is S.
-    seq_len, n_seed : int
-        Window length T in frames (34) and known seed frames at its start (4).
+    fps : float
+        Frame rate of the model's inputs and outputs (the trainer's feature rate, 20 fps).
+    window_s, seed_s : float
+        Window length and known seed poses at its start, seconds: the paper's T = 34 and 4 frames at its 15 fps
+        (2.27 s and 0.27 s), so at 20 fps :attr:`seq_len` = 45 and :attr:`n_seed` = 5 frames cover the same time.
     d_mfcc, d_text, d_style : int
         D_m = 32, D_x = 32, D_s = 16.
     d_aff1, d_aff2, d_aff : int
@@ -80,8 +83,9 @@ class S2AGConfig:
     n_mfcc: int = 37
     n_text: int = 384
     speakers: tuple[str, ...] = ("default",)
-    seq_len: int = 34
-    n_seed: int = 4
+    fps: float = 20.0
+    window_s: float = 34 / 15
+    seed_s: float = 4 / 15
     d_mfcc: int = 32
     d_text: int = 32
     d_style: int = 16
@@ -105,6 +109,16 @@ class S2AGConfig:
     dir_mean: tuple[float, ...] = ()
 
     @property
+    def seq_len(self) -> int:
+        """Window length T, frames."""
+        return round(self.window_s * self.fps)
+
+    @property
+    def n_seed(self) -> int:
+        """Known seed frames at the start of a window."""
+        return max(1, round(self.seed_s * self.fps))
+
+    @property
     def n_speakers(self) -> int:
         return len(self.speakers)
 
@@ -116,6 +130,11 @@ class S2AGConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> S2AGConfig:
         d = dict(d)
+        fps = float(d.get("fps", cls.fps))
+        if "seq_len" in d:  # checkpoints before windows were set in seconds
+            d["window_s"] = d.pop("seq_len") / fps
+        if "n_seed" in d:
+            d["seed_s"] = d.pop("n_seed") / fps
         for k in ("speakers", "mfcc_mean", "mfcc_std", "dir_mean"):
             if k in d:
                 d[k] = tuple(d[k])

@@ -18,9 +18,10 @@ Data path (all at the feature rate, 20 fps):
   skeleton's forward kinematics, minus the training mean direction; back to canonical rotations by per-bone swings
   (:func:`directions_to_motion`).
 
-Windows are ``seq_len`` = 34 frames (the paper's T); the first ``n_seed`` = 4 frames of the seed-pose input carry
-known poses and the rest are zero with a "known" flag of 0 (the released Yoon et al. / S2AG code's way of feeding
-"seed poses of length T"). Inference runs window after window, seeding each with the last 4 generated poses.
+Windows last the paper's T = 34 frames at 15 fps, 2.27 s (``seq_len`` = 45 frames at the feature rate of 20 fps);
+the first ``n_seed`` frames (4 at 15 fps, 0.27 s: 5 at 20 fps) of the seed-pose input carry known poses and the
+rest are zero with a "known" flag of 0 (the released Yoon et al. / S2AG code's way of feeding "seed poses of length
+T"). Inference runs window after window, seeding each with the last ``n_seed`` generated poses.
 """
 
 from __future__ import annotations

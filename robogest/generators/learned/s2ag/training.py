@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from robogest.data.features import FeatureConfig
 from robogest.data.prep import slice_windows
 from robogest.generators.learned.s2ag.config import S2AGConfig, mfcc_from_mel, speaker_key
 from robogest.generators.learned.s2ag.networks import F, S2AGNet, torch
@@ -50,7 +51,7 @@ class S2AGSpec:
     name = "s2ag"
 
     def make_config(self, n_acoustic: int, n_text: int, n_pose: int, overrides: dict[str, Any]) -> S2AGConfig:
-        return config_with_overrides(S2AGConfig, "s2ag", overrides, n_text=n_text)
+        return config_with_overrides(S2AGConfig, "s2ag", overrides, n_text=n_text, fps=FeatureConfig().fps)
 
     def config_from_dict(self, d: dict[str, Any]) -> S2AGConfig:
         return S2AGConfig.from_dict(d)
