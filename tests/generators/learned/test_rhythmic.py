@@ -198,9 +198,13 @@ def test_vq_vae_reconstruction_falls_and_codebook_is_used(takes_and_speech):
 # ------------------------------------------------------------------------------------------------ trained model
 def _gt_codes(gen, take, speech):
     from robogest.generators.learned.rhythmic import take_rhythm
+    from robogest.generators.learned.rhythmic.take import take_beats
 
-    bounds, _ = take_rhythm(gen.norm.acoustic(take.acoustic)[:, :64], take.acoustic[:, :64], take.text, gen.config)
-    assert np.array_equal(bounds, gen.generate_blocks(speech).bounds)
+    beats = take_beats(take.read_audio(gen.config.audio_sr), gen.config)  # how training cuts a cached take
+    mel = gen.norm.acoustic(take.acoustic)[:, :64]
+    bounds, _ = take_rhythm(mel, take.acoustic[:, :64], take.text, gen.config, beats)
+    assert np.array_equal(bounds, gen.generate_blocks(speech).bounds)  # one rule: the speech front-end's beats
+    assert np.array_equal(bounds, clip_bounds(speech.beats_s, take.n_frames, 20.0))
     pb = torch.from_numpy(normalize_clips(gen.norm.pose(take.poses), bounds, K))
     with torch.no_grad():
         idx = gen.model.vq.quantize(gen.model.vq.encode(pb))

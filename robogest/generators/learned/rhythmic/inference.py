@@ -92,7 +92,7 @@ class RhythmicGenerator(CheckpointGenerator):
             from robogest.speech.audio import resample
 
             audio = resample(speech.audio, speech.sr, c.audio_sr)
-        tb = take_blocks(acoustic[:, : c.n_mels], text, self.norm, c, audio)
+        tb = take_blocks(acoustic[:, : c.n_mels], text, self.norm, c, audio, beats_s=speech.beats_s)
         bounds, silent = tb.bounds, tb.silent  # (C + 1,), (C,)
         n_b = len(bounds) - 1
         if n_b == 0 or t_frames == 0:

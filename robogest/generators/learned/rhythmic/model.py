@@ -24,10 +24,10 @@ Parts, one :class:`RhythmicNet`:
   the generator's training batch. A silent block has no words and, in takes without any words, mostly quiet frames
   (:func:`.blocks.silent_blocks`), so takes without transcripts train the hint too.
 
-Beats: training takes and run-time speech are cut by one rule, :func:`take_rhythm` (the speech module's
-``identify_beats`` on the whole take's standardised log-mel, :func:`.blocks.frame_beats`), and turned
-into blocks by one function, :func:`take_blocks`. ``Speech.beats_s`` (found on the waveform) is not used, since
-cached training takes keep only their features.
+Beats (§4.2.1): training takes and run-time speech are cut by the speech front-end's rule on the waveform
+(``Speech.beats_s``; :func:`.take.take_beats` for a cached training take's recording), and turned into blocks by one
+function, :func:`.take.take_blocks`. Only frames without their recording fall back to beats of the log-mel frames
+(:func:`.blocks.frame_beats`).
 
 Training through :func:`robogest.learn.trainer.train`: :meth:`RhythmicSpec.make_windows` cuts every take into
 blocks once and hands the trainer windows of ``window_blocks`` consecutive blocks. The paper's stages run one after

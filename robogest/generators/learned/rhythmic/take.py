@@ -20,7 +20,7 @@ from robogest.generators.learned.rhythmic.config import TEXT_SCALE, RhythmicConf
 
 # --------------------------------------------------------------------------------------------------- beat rhythm
 def take_rhythm(
-    mel: np.ndarray, mel_db: np.ndarray, text: np.ndarray, c: RhythmicConfig
+    mel: np.ndarray, mel_db: np.ndarray, text: np.ndarray, c: RhythmicConfig, beats_s: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Clip bounds and silent clips of a whole take or speech: the one rule of training and inference.
 
@@ -33,6 +33,9 @@ def take_rhythm(
     text : ndarray [shape=(T, D)]
         Raw text features (frames outside words are the silence vector, -15).
     c : RhythmicConfig
+    beats_s : ndarray [shape=(B,)], seconds, optional
+        Beats by the speech front-end's rule on the waveform (``Speech.beats_s``, :func:`take_beats`): the paper's
+        §4.2.1 cut. Without them (features but no recording) the beats come from the log-mel frames instead.
 
     Returns
     -------
@@ -42,8 +45,9 @@ def take_rhythm(
     silent : ndarray [shape=(C,)], bool
         :func:`.blocks.silent_blocks` (words from ``text``, quiet frames from ``mel_db``).
     """
-    beats = frame_beats(mel, c.fps, c.min_beat_gap_s, c.max_beat_gap_s)
-    bounds = clip_bounds(beats, mel.shape[0], c.fps)
+    if beats_s is None:
+        beats_s = frame_beats(mel, c.fps, c.min_beat_gap_s, c.max_beat_gap_s)
+    bounds = clip_bounds(np.asarray(beats_s, np.float64), mel.shape[0], c.fps)
     silent = silent_blocks(bounds, word_frames(text), quiet_frames(mel_db), c.quiet_share)
     return bounds, silent
 
@@ -85,6 +89,7 @@ def take_blocks(
     c: RhythmicConfig,
     audio: np.ndarray | None = None,
     poses: np.ndarray | None = None,
+    beats_s: np.ndarray | None = None,
 ) -> TakeBlocks:
     """Cut a whole take or speech at its beats and normalise every clip to a block (§4.2): the one path from
     frames to blocks for training and inference.
@@ -104,11 +109,16 @@ def take_blocks(
         log-mel frames are resampled.
     poses : ndarray [shape=(T, P)], radians, optional
         Exponential maps (a training take), returned normalised and in blocks.
+    beats_s : ndarray [shape=(B,)], seconds, optional
+        The speech's beats (``Speech.beats_s``); None: :func:`take_beats` of ``audio`` when given, else beats of
+        the log-mel frames (:func:`take_rhythm`).
     """
     m = c.n_mels
     mean, std = norm.acoustic_mean[:m], norm.acoustic_std[:m]
     mel = ((mel_db - mean) / std).astype(np.float32)  # (T, M) standardised
-    bounds, silent = take_rhythm(mel, mel_db, text, c)
+    if beats_s is None and audio is not None:
+        beats_s = take_beats(audio, c)
+    bounds, silent = take_rhythm(mel, mel_db, text, c, beats_s)
     k = c.block
     if audio is not None and c.audio_tsm:
         mel_blocks = (tsm_mel_blocks(audio, c.audio_sr, bounds, c.fps, k, m, c.mel_window_s) - mean) / std
@@ -116,3 +126,13 @@ def take_blocks(
         mel_blocks = normalize_clips(mel, bounds, k)
     pose_blocks = normalize_clips(norm.pose(poses), bounds, k) if poses is not None else None
     return TakeBlocks(bounds, silent, mel_blocks.astype(np.float32), normalize_clips(text, bounds, k), pose_blocks)
+
+
+def take_beats(audio: np.ndarray, c: RhythmicConfig) -> np.ndarray:
+    """Beats ``(B,)`` s of a recording at ``c.audio_sr`` Hz by the speech front-end's §4.2.1 rule
+    (:func:`robogest.speech.audio_beats`, the same as ``Speech.beats_s`` at run time)."""
+    from robogest.speech import audio_beats
+    from robogest.speech.config import SpeechConfig
+
+    cfg = SpeechConfig(sr=c.audio_sr, fps=c.fps, min_beat_gap_s=c.min_beat_gap_s, max_beat_gap_s=c.max_beat_gap_s)
+    return audio_beats(audio, c.audio_sr, cfg)[0]

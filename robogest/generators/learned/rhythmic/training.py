@@ -14,7 +14,7 @@ from robogest.errors import InputError
 from robogest.generators.learned.rhythmic.config import STAGES, RhythmicConfig
 from robogest.generators.learned.rhythmic.model import RhythmicNet
 from robogest.generators.learned.rhythmic.networks import AUDIO_ENCODERS
-from robogest.generators.learned.rhythmic.take import take_blocks
+from robogest.generators.learned.rhythmic.take import take_beats, take_blocks
 from robogest.learn import config_with_overrides
 
 
@@ -92,8 +92,11 @@ class RhythmicSpec:
         w = length // k
         xs, ys, idx = [], [], []
         for i, t in enumerate(takes):
-            audio = t.read_audio(config.audio_sr) if config.audio_tsm and t.audio_path is not None else None
-            tb = take_blocks(t.acoustic[:, :m], t.text, norm, config, audio, t.poses)
+            audio = t.read_audio(config.audio_sr) if t.audio_path is not None else None
+            beats = take_beats(audio, config) if audio is not None else None  # the speech front-end's rule
+            tb = take_blocks(
+                t.acoustic[:, :m], t.text, norm, config, audio if config.audio_tsm else None, t.poses, beats
+            )
             n_c = tb.silent.shape[0]
             if n_c < w:
                 continue
