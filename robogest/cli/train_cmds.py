@@ -30,7 +30,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--lr", type=float, help="Adam learning rate (default: the model's paper value: gesticulator 1e-4, rhythmic "
         "3e-4; s2ag always uses its own two rates, see --set lr_generator=...)",
     )  # fmt: skip
-    p.add_argument("--val-fraction", type=float, default=0.1, help="share of takes for validation")
+    p.add_argument(
+        "--val-fraction", type=float, default=0.1,
+        help="share of takes for validation (a folder with BEAT2's train_test_split.csv uses its split instead)",
+    )  # fmt: skip
     p.add_argument("--window-stride", type=int, default=5, help="frames between training windows")
     p.add_argument("--text-encoder", default="minilm", help="text encoder name (default: %(default)s)")
     p.add_argument("--cache-dir", metavar="DIR", help="feature cache (default: ~/.cache/robogest/features)")

@@ -12,6 +12,7 @@ from robogest.data.datasets import (
     discover_takes,
     load_dataset,
     load_take,
+    official_split,
 )
 from robogest.data.features import FeatureConfig, expmap_to_motion, motion_to_expmap, speech_inputs
 from robogest.data.fixtures import make_fixture_dataset
@@ -32,6 +33,7 @@ __all__ = [
     "make_fixture_dataset",
     "make_windows",
     "motion_to_expmap",
+    "official_split",
     "speech_inputs",
     "split_takes",
 ]

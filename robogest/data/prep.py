@@ -15,8 +15,13 @@ from robogest.errors import InputError
 MIN_STD = 1e-4
 
 
-def split_takes(takes: Sequence[Take], val_fraction: float = 0.1, seed: int = 0) -> tuple[list[Take], list[Take]]:
+def split_takes(
+    takes: Sequence[Take], val_fraction: float = 0.1, seed: int = 0, official: dict[str, str] | None = None
+) -> tuple[list[Take], list[Take]]:
     """Split by take so no recording is in both sets.
+
+    ``official`` (:func:`robogest.data.datasets.official_split`, BEAT2) decides when given: its ``val`` takes
+    validate, the rest train, and ``val_fraction`` is not used.
 
     Takes are ordered by a hash of ``(seed, name)`` (stable however the folder is listed) and the first
     ``round(val_fraction * n)`` (at least one when there are two or more takes) go to validation. A dataset of a
@@ -28,6 +33,9 @@ def split_takes(takes: Sequence[Take], val_fraction: float = 0.1, seed: int = 0)
     """
     if not takes:
         raise InputError("no takes to split")
+    if official is not None:
+        val = [t for t in takes if official.get(t.name) == "val"]
+        return [t for t in takes if official.get(t.name) != "val"], val
     if not 0.0 <= val_fraction < 1.0:
         raise InputError(f"val_fraction must be in [0, 1), got {val_fraction}")
     if val_fraction == 0.0:

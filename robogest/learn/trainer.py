@@ -23,7 +23,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from robogest.data.datasets import load_dataset
+from robogest.data.datasets import load_dataset, official_split
 from robogest.data.features import FeatureConfig
 from robogest.data.prep import Normalization, make_windows, split_takes
 from robogest.errors import InputError
@@ -223,7 +223,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
     takes = load_dataset(cfg.data, fcfg, cfg.cache_dir)
     minutes = sum(t.n_frames for t in takes) / fcfg.fps / 60
     say(f"{len(takes)} takes, {minutes:.1f} min of speech (features in {time.perf_counter() - t0:.1f} s)")
-    train_takes, val_takes = split_takes(takes, cfg.val_fraction, cfg.seed)
+    train_takes, val_takes = split_takes(takes, cfg.val_fraction, cfg.seed, official_split(cfg.data))
     norm = Normalization.fit(train_takes)
     n_acoustic, n_text, n_pose = takes[0].acoustic.shape[1], takes[0].text.shape[1], takes[0].poses.shape[1]
 

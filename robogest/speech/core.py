@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -156,7 +156,10 @@ def audio_beats(audio: np.ndarray, sr: int, config: SpeechConfig = _DEFAULT) -> 
 
 
 def load_speech(
-    audio_path: str | Path, transcript_path: str | Path | None = None, config: SpeechConfig = _DEFAULT
+    audio_path: str | Path,
+    transcript_path: str | Path | None = None,
+    config: SpeechConfig = _DEFAULT,
+    skip_bad_words: Callable[[str], None] | None = None,
 ) -> Speech:
     """Load an audio file (WAV/FLAC/OGG/MP3, any rate, stereo mixed down) with an optional transcript.
 
@@ -167,6 +170,9 @@ def load_speech(
         ``.txt`` (untimed, spread over the voiced regions by syllables), ``.TextGrid`` (``words`` tier),
         ``.json`` or ``.tsv``/``.csv`` word timings; see :mod:`robogest.speech.transcript`.
     config : SpeechConfig
+    skip_bad_words : callable, optional
+        Receives the message of each timed word that cannot be aligned, which is then dropped (datasets); without
+        it such a word is an :class:`InputError`.
 
     Raises
     ------
@@ -183,7 +189,7 @@ def load_speech(
         text = tr.text
         where = f"transcript {transcript_path} for {path}"
         if tr.timed:
-            words = validate_words(tr.words, raw.shape[0] / file_sr, where)
+            words = validate_words(tr.words, raw.shape[0] / file_sr, where, skip=skip_bad_words)
         else:
             a = resample(raw, file_sr, config.sr)
             volume, vrate = fine_volume(a, config.sr, config)
