@@ -280,8 +280,6 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         # Pre-training epochs leave the autoregressive pose encoder unused, hence find_unused_parameters.
         net = DDP(model, device_ids=[device.index] if device.type == "cuda" else None, find_unused_parameters=True)
 
-    x_t, y_t = torch.from_numpy(xs), torch.from_numpy(ys)
-    vx_t, vy_t = torch.from_numpy(vx), torch.from_numpy(vy)
     best_path = out / "best.pt"
 
     def checkpoint(next_epoch: int) -> dict[str, Any]:
@@ -305,7 +303,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         stage = spec.stage_name(epoch, mcfg) if hasattr(spec, "stage_name") else ""
         t_ep = time.perf_counter()
         g = torch.Generator().manual_seed(cfg.seed * 100_003 + epoch)
-        batches = _batches(x_t.shape[0], cfg.batch_size, g, info)
+        batches = _batches(len(xs), cfg.batch_size, g, info)
         net.train()
         total, count = 0.0, 0
         parts: dict[str, float] = {}
@@ -314,7 +312,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         if bar and epoch == start:
             bar.start()
         for b in batches:
-            xb, yb = x_t[b].to(device), y_t[b].to(device)
+            xb, yb = torch.from_numpy(xs[b]).to(device), torch.from_numpy(ys[b]).to(device)  # read from disk
             if custom_step:
                 stats = spec.train_step(net, optimizers, xb, yb, epoch, mcfg)
                 batch_loss = float(stats["loss"])
@@ -333,7 +331,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
                 bar.update(task, advance=1, loss=f"{total / count:.4f}")
         if bar:
             bar.remove_task(task)
-        val = _evaluate(spec, model, vx_t, vy_t, epoch, mcfg, device, cfg.batch_size, info, torch)
+        val = _evaluate(spec, model, vx, vy, epoch, mcfg, device, cfg.batch_size, info, torch)
         train_loss = D.all_reduce_mean([total / max(count, 1)], info, device)[0]
         part_means = dict(
             zip(parts, D.all_reduce_mean([v / max(count, 1) for v in parts.values()], info, device), strict=True)
@@ -371,6 +369,6 @@ def _evaluate(spec, model, vx, vy, epoch, mcfg, device, batch, info, torch) -> f
     total = 0.0
     with torch.no_grad():
         for s in range(0, vx.shape[0], batch):
-            xb, yb = vx[s : s + batch].to(device), vy[s : s + batch].to(device)
+            xb, yb = torch.from_numpy(vx[s : s + batch]).to(device), torch.from_numpy(vy[s : s + batch]).to(device)
             total += float(loss(model, xb, yb, epoch, mcfg)) * xb.shape[0]
     return total / vx.shape[0]

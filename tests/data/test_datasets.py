@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -212,3 +213,49 @@ def test_beat2_official_split_is_used(tmp_path):
     (root / ds.SPLIT_FILE).write_text("name,split\nx,train\n")
     with pytest.raises(InputError, match="expected the columns id,type"):
         ds.official_split(root)
+
+
+_LAZY_SCRIPT = """
+import resource, sys
+import numpy as np
+from robogest.data.prep import slice_windows
+
+def vm_bytes():
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmSize:"))
+
+limit = vm_bytes() + 300 * 2**20  # what this process allows itself from here on
+resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+length, d, n_takes, frames = 70, 256, 8, 4000  # 8 takes: 33 MB of frames, 2.2 GB of windows at stride 1
+
+def take(i):
+    rng = np.random.default_rng(i)
+    return rng.standard_normal((frames, d), dtype=np.float32)
+
+x, y, idx = slice_windows(((i, take(i), take(i)[:, :3]) for i in range(n_takes)), length, 1, d, 3)
+assert len(x) == n_takes * (frames - length + 1)
+assert len(x) * length * d * 4 > 6 * 300 * 2**20  # stored whole: 6 times the allowance
+rng = np.random.default_rng(0)
+for _ in range(20):
+    b = rng.integers(0, len(x), 64)
+    xb = x[b]
+    i, s = idx[b[0]], b[0] - idx[b[0]] * (frames - length + 1)
+    assert xb.shape == (64, length, d) and np.array_equal(xb[0], take(i)[s : s + length])
+try:
+    np.stack([x[k] for k in range(0, len(x), 1)])
+except MemoryError:
+    print("ok")
+"""
+
+
+def test_training_windows_are_read_lazily_from_disk_within_a_memory_limit():
+    """Windows bigger than the memory the process allows itself are built and read batch by batch; stacking them
+    (the old in-memory way) fails under the same limit."""
+    import subprocess
+    import sys
+
+    if not os.path.exists("/proc/self/status"):
+        pytest.skip("needs /proc (Linux) to set the limit relative to the process size")
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}  # this checkout's robogest
+    r = subprocess.run([sys.executable, "-c", _LAZY_SCRIPT], capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr[-2000:]

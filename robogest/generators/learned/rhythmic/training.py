@@ -90,32 +90,21 @@ class RhythmicSpec:
         """
         k, m = config.block, config.n_mels
         w = length // k
-        xs, ys, idx = [], [], []
-        for i, t in enumerate(takes):
-            audio = t.read_audio(config.audio_sr) if t.audio_path is not None else None
-            beats = take_beats(audio, config) if audio is not None else None  # the speech front-end's rule
-            tb = take_blocks(
-                t.acoustic[:, :m], t.text, norm, config, audio if config.audio_tsm else None, t.poses, beats
-            )
-            n_c = tb.silent.shape[0]
-            if n_c < w:
-                continue
-            flag = np.broadcast_to(tb.silent[:, None, None], (n_c, k, 1))
-            x = np.concatenate([tb.mel, tb.text, flag], axis=2).reshape(n_c, -1)  # (C, K, F) -> (C, K * F)
-            y = tb.poses.reshape(n_c, -1)  # (C, K, P) -> (C, K * P)
-            step = max(1, round(stride * n_c / t.n_frames))  # frames -> blocks
-            xw, yw, _ = slice_windows([(i, x, y)], w, step, x.shape[1], y.shape[1])  # (N_i, W, K * F)
-            xs.append(xw.reshape(xw.shape[0], w * k, -1))  # (N_i, W, K * F) -> (N_i, W * K, F)
-            ys.append(yw.reshape(yw.shape[0], w * k, -1))
-            idx.append(np.full(xw.shape[0], i))
-        if not xs:
-            f = m + config.n_text + 1
-            return (
-                np.zeros((0, w * k, f), np.float32),
-                np.zeros((0, w * k, config.n_pose), np.float32),
-                np.zeros(0, int),
-            )
-        return np.concatenate(xs), np.concatenate(ys), np.concatenate(idx)
+        f = m + config.n_text + 1
+
+        def per_take():  # one take's blocks at a time: (index, (C, K * F), (C, K * P), stride in blocks)
+            for i, t in enumerate(takes):
+                audio = t.read_audio(config.audio_sr) if t.audio_path is not None else None
+                beats = take_beats(audio, config) if audio is not None else None  # the speech front-end's rule
+                tsm = audio if config.audio_tsm else None
+                tb = take_blocks(t.acoustic[:, :m], t.text, norm, config, tsm, t.poses, beats)
+                n_c = tb.silent.shape[0]
+                flag = np.broadcast_to(tb.silent[:, None, None], (n_c, k, 1))
+                x = np.concatenate([tb.mel, tb.text, flag], axis=2).reshape(n_c, -1)  # (C, K, F) -> (C, K * F)
+                yield i, x, tb.poses.reshape(n_c, -1), max(1, round(stride * n_c / t.n_frames))  # frames -> blocks
+
+        # a window of W blocks of K * F values is read as (W * K, F)
+        return slice_windows(per_take(), w, 1, k * f, k * config.n_pose, (w * k, f), (w * k, config.n_pose))
 
     def loss(self, model, speech, poses, epoch: int, config: RhythmicConfig):
         return model(speech, poses, epoch)  # through the (possibly DDP) wrapper's forward
