@@ -147,7 +147,8 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
         if "maje_mad" in result:
             m = result["maje_mad"]
             note = f" ({m['dropped_frames']} frames truncated)" if m["dropped_frames"] else ""
-            rows += [("MAJE (mm)", _fmt(m["maje_mm"]) + note), ("MAD (mm/s²)", _fmt(m["mad_mm_s2"]))]
+            mad = (f"MAD (mm/frame² at {m['fps']:g} fps)", _fmt(m["mad_mm_per_frame2"]))
+            rows += [("MAJE (mm)", _fmt(m["maje_mm"]) + note), mad]
         if "features" in result:
             f = result["features"]
             rows += [("FD kinetic", _fmt(f["fd_kinetic"])), ("FD geometric", _fmt(f["fd_geometric"]))]
