@@ -13,6 +13,7 @@ from robogest.data.datasets import (
     load_dataset,
     load_take,
     official_split,
+    speaker_key,
 )
 from robogest.data.features import FeatureConfig, expmap_to_motion, motion_to_expmap, speech_inputs
 from robogest.data.fixtures import make_fixture_dataset
@@ -34,6 +35,7 @@ __all__ = [
     "make_windows",
     "motion_to_expmap",
     "official_split",
+    "speaker_key",
     "speech_inputs",
     "split_takes",
 ]

@@ -20,6 +20,7 @@ import dataclasses
 import hashlib
 import math
 import os
+import re
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -182,6 +183,16 @@ def official_split(root: str | os.PathLike) -> dict[str, str] | None:
         raise InputError(f"{path}: expected the columns id,type (BEAT2's official split)")
     kinds = {"train": "train", "additional": "train", "val": "val", "test": "test"}
     return {r["id"].strip(): kinds.get(r["type"].strip().lower(), "test") for r in rows}
+
+
+_SPEAKER_RE = re.compile(r"^(\d+)_")
+
+
+def speaker_key(take_name: str) -> str:
+    """Speaker of a take from its name: BEAT2's leading speaker number (``"2_scott_0_1_1"`` -> ``"2"``), else
+    ``"default"`` (GENEA/Trinity and plain folders hold one speaker)."""
+    m = _SPEAKER_RE.match(take_name)
+    return m.group(1) if m else "default"
 
 
 def default_cache_dir() -> Path:

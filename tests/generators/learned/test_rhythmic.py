@@ -153,7 +153,7 @@ def test_take_without_words_yields_silent_and_speech_blocks(takes_and_speech):
     length = cfg.window_blocks * K
     for t in (take, _no_words(take)):
         x, y, _ = SPEC.make_windows([t], norm, cfg, length, 30)
-        assert x.shape[1:] == (length, cfg.n_mels + cfg.n_text + 1) and y.shape[1:] == (length, cfg.n_pose)
+        assert x.shape[1:] == (length, cfg.n_mels + cfg.n_text + 2) and y.shape[1:] == (length, cfg.n_pose)
         empty = net.segment(torch.from_numpy(x[:]), torch.from_numpy(y[:])).empty.numpy()
         assert empty.any() and not empty.all(), empty.mean()
     mel = norm.acoustic(take.acoustic)[:, :64]
@@ -280,7 +280,7 @@ def test_inference_blocks_equal_training_blocks(rhythmic_run, takes_and_speech, 
     w = c.window_blocks
     np.testing.assert_allclose(x[0, :, :64], train_blocks.mel[:w].reshape(w * K, 64), atol=1e-6)
     np.testing.assert_allclose(y[0], train_blocks.poses[:w].reshape(w * K, -1), atol=1e-6)
-    np.testing.assert_array_equal(x[0, ::K, -1] > 0.5, train_blocks.silent[:w])
+    np.testing.assert_array_equal(x[0, ::K, -2] > 0.5, train_blocks.silent[:w])
 
 
 def test_lexeme_entropy_and_pmb_from_generated_blocks(rhythmic_run, takes_and_speech):
@@ -449,8 +449,8 @@ def test_generator_trains_on_a_rollout_with_its_state_carried_over(takes_and_spe
     calls = []
     real = net.gen.forward
 
-    def spy(prev, a3, s, z, state=None):
-        out, new_state = real(prev, a3, s, z, state)
+    def spy(prev, a3, s, z, state=None, speaker=None):
+        out, new_state = real(prev, a3, s, z, state, speaker)
         calls.append((prev, state, out, new_state))
         return out, new_state
 
@@ -467,3 +467,31 @@ def test_generator_trains_on_a_rollout_with_its_state_carried_over(takes_and_spe
         assert chain[0][1] is None
         for (_, _, out, st), (prev, state, _, _) in itertools.pairwise(chain):
             assert prev is out and state is st  # its own output and LSTM state go on
+
+
+def test_speaker_identity_conditions_the_generator(takes_and_speech):
+    """The speaker table comes from the take names (BEAT2's speaker numbers), every window carries its speaker,
+    and the generator's motion depends on the speaker chosen at run time."""
+    import dataclasses
+
+    from robogest.data import FeatureConfig
+    from robogest.generators.learned.rhythmic import SPEC, RhythmicGenerator, RhythmicNet
+
+    takes = [dataclasses.replace(t, name=f"{i + 1}_spk_0_1_1") for i, (t, _) in enumerate(takes_and_speech[:2])]
+    norm = Normalization.fit(takes)
+    cfg = SPEC.fit_config(SPEC.make_config(69, takes[0].text.shape[1], 51, SMALL), takes)
+    assert cfg.speakers == ("1", "2")
+    x, _, idx = SPEC.make_windows(takes, norm, cfg, cfg.window_blocks * K, 20)
+    np.testing.assert_array_equal(x[:][:, 0, -1], idx)  # take i is speaker i
+    torch.manual_seed(0)
+    net = RhythmicNet(cfg)
+    speech = takes_and_speech[0][1]
+    feats = FeatureConfig(**HASH16)
+    a = RhythmicGenerator.from_model(net, feats, norm, speaker="1").generate_blocks(speech).poses
+    b = RhythmicGenerator.from_model(net, feats, norm, speaker=1).generate_blocks(speech).poses
+    assert not np.allclose(a, b)
+    with pytest.raises(InputError, match=r"speaker '7' is not one of the model's speakers \['1', '2'\]"):
+        RhythmicGenerator.from_model(net, feats, norm, speaker="7")
+    old = dataclasses.asdict(cfg)
+    del old["speakers"], old["speaker_dim"]
+    assert type(cfg).from_dict(old).speaker_dim == 0  # a checkpoint from before loads without the embedding

@@ -79,6 +79,12 @@ class RhythmicConfig:
         ``lexeme_temperature`` option) samples each lexeme from its softmax at this temperature, seeded by ``seed``.
     smooth_kernel : int
         Gaussian kernel (frames) applied to the denormalised output.
+    speakers : tuple of str
+        Speaker keys (:func:`robogest.data.speaker_key` of the take names) in embedding order; filled from the
+        training takes.
+    speaker_dim : int
+        Size of the learned speaker embedding the generator is conditioned on (the authors' speaker identity
+        input); 0: none (checkpoints from before it existed).
     """
 
     n_acoustic: int = 69
@@ -125,6 +131,8 @@ class RhythmicConfig:
     quiet_share: float = 0.5
     lexeme_temperature: float = 0.0
     smooth_kernel: int = 5
+    speakers: tuple = ("default",)
+    speaker_dim: int = 8
 
     def __post_init__(self) -> None:
         if self.stages not in ("sequential", "joint"):
@@ -153,7 +161,9 @@ class RhythmicConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> RhythmicConfig:
         d = dict(d)
-        for k in ("stage_weights", "stage_ends"):
+        if "speakers" not in d:  # a checkpoint from before the speaker embedding
+            d["speaker_dim"] = 0
+        for k in ("stage_weights", "stage_ends", "speakers"):
             if k in d:
                 d[k] = tuple(d[k])
         return cls(**d)

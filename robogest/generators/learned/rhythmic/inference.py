@@ -48,11 +48,21 @@ class RhythmicGenerator(CheckpointGenerator):
     config_cls = RhythmicConfig
     net_cls = RhythmicNet
 
-    def configure(self, lexeme_temperature: float | None = None) -> None:
-        """``lexeme_temperature``: 0 the most likely lexeme, > 0 sample at that temperature; None: the config's."""
+    def configure(self, lexeme_temperature: float | None = None, speaker: int | str | None = None) -> None:
+        """``lexeme_temperature``: 0 the most likely lexeme, > 0 sample at that temperature; None: the config's.
+        ``speaker``: index or key (e.g. BEAT2's ``"2"``) of a training speaker; None: the first."""
         if lexeme_temperature is not None and not lexeme_temperature >= 0:
             raise InputError(f"lexeme_temperature={lexeme_temperature!r}: must be >= 0 (0: the most likely lexeme)")
         self.temperature = lexeme_temperature
+        known = list(self.config.speakers)
+        if speaker is None:
+            self.speaker_index = 0
+        elif isinstance(speaker, str) and speaker in known:
+            self.speaker_index = known.index(speaker)
+        elif isinstance(speaker, int) and not isinstance(speaker, bool) and 0 <= speaker < len(known):
+            self.speaker_index = speaker
+        else:
+            raise InputError(f"speaker {speaker!r} is not one of the model's speakers {known} (index or key)")
 
     def generate_blocks(
         self,
@@ -114,6 +124,7 @@ class RhythmicGenerator(CheckpointGenerator):
             s_prev = codebook[m.vq.quantize(m.vq.encode(prev))]  # (1, d_s)
             z_prev = torch.zeros(1, c.style_dim, device=dev)
             out, lex_ids, state = [], np.zeros(n_b, int), None
+            spk = torch.full((1,), self.speaker_index, dtype=torch.long, device=dev)
             for j in range(n_b):
                 if lexemes is not None:
                     lex = int(lexemes[j])
@@ -134,7 +145,7 @@ class RhythmicGenerator(CheckpointGenerator):
                     z = torch.zeros(1, c.style_dim, device=dev)  # silent blocks: z = 0 (§6.4.1)
                 else:
                     z = sty_net(a3[j : j + 1], txt[j : j + 1], torch.cat([z_prev, s], dim=1))
-                y, state = m.gen(prev, a3[j : j + 1], s, z, state)  # (1, K, P), LSTM state carried over
+                y, state = m.gen(prev, a3[j : j + 1], s, z, state, spk)  # (1, K, P), LSTM state carried over
                 out.append(y[0])
                 lex_ids[j] = lex
                 prev, s_prev, z_prev = y, s, z

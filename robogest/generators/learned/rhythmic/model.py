@@ -78,6 +78,7 @@ class Blocks:
     cur: Any
     nxt: Any
     per_window: int
+    speaker: Any = None
 
 
 class RhythmicNet(nn.Module):
@@ -151,14 +152,15 @@ class RhythmicNet(nn.Module):
 
     # ---- training
     def segment(self, speech, poses) -> Blocks:
-        """Trainer windows ``(B, W * K, M + D + 1)``, ``(B, W * K, P)`` from :meth:`RhythmicSpec.make_windows`
-        (``W`` consecutive blocks laid end to end; the last input channel flags silent blocks) -> blocks."""
+        """Trainer windows ``(B, W * K, M + D + 2)``, ``(B, W * K, P)`` from :meth:`RhythmicSpec.make_windows`
+        (``W`` consecutive blocks laid end to end; the last two input channels: silent-block flag, speaker index)
+        -> blocks."""
         c = self.config
         k, m, d = c.block, c.n_mels, c.n_text
         b, length = speech.shape[:2]
-        if speech.shape[2] != m + d + 1 or length % k:
+        if speech.shape[2] != m + d + 2 or length % k:
             raise InputError(
-                f"rhythmic windows are {tuple(speech.shape)}, expected (B, W * {k}, {m + d + 1}); "
+                f"rhythmic windows are {tuple(speech.shape)}, expected (B, W * {k}, {m + d + 2}); "
                 "make them with RhythmicSpec.make_windows"
             )
         w = length // k
@@ -170,7 +172,8 @@ class RhythmicNet(nn.Module):
             mel=x[..., :m],
             text=x[..., m : m + d] / TEXT_SCALE,
             poses=poses.reshape(b * w, k, -1),  # (B, W * K, P) -> (B * W, K, P)
-            empty=x[:, 0, -1] > 0.5,
+            empty=x[:, 0, -2] > 0.5,
+            speaker=x[:, 0, -1].round().long(),
             prev=cur - 1,
             cur=cur,
             nxt=cur + 1,
@@ -273,7 +276,8 @@ class RhythmicNet(nn.Module):
         z = self.gen.style_code(target)  # (S, d_z)
         s = s_all[i]
         n_real = i.numel()
-        gen = self.rollout(bl.poses[p[:: bl.per_window]], a3, s, z, bl.per_window)  # (S, K, P)
+        spk = bl.speaker[i]  # (S,)
+        gen = self.rollout(bl.poses[p[:: bl.per_window]], a3, s, z, bl.per_window, spk)  # (S, K, P)
         prev_m = bl.poses[p]
         after_empty = torch.nonzero(bl.empty[p]).flatten()
         silent_of_prev = self.nearest_silent(s_all[p])
@@ -288,13 +292,16 @@ class RhythmicNet(nn.Module):
             s = torch.cat([s, self.vq.codebook.detach()[silent_of_prev[pick]]])
             z = torch.cat([z, z.new_zeros(pick.numel(), c.style_dim)])
             target = torch.cat([target, still])
+            spk = torch.cat([spk, bl.speaker[pp]])
         if prev_m.shape[0] > n_real:  # the inserted silent blocks, one step each from their held pose
-            extra, _ = self.gen(prev_m[n_real:], a3[n_real:], s[n_real:], z[n_real:])
+            extra, _ = self.gen(prev_m[n_real:], a3[n_real:], s[n_real:], z[n_real:], speaker=spk[n_real:])
             gen = torch.cat([gen, extra])  # (S', K, P)
         l_rec = F.mse_loss(gen, target)
         l_perc = F.mse_loss(self.vq.encode(gen, frozen=True), self.vq.encode(target, frozen=True).detach())
         perm = torch.randperm(n_real, device=a_low.device)  # eq. 12: same lexeme, another block's other inputs
-        other, _ = self.gen(prev_m[:n_real][perm], a3[:n_real][perm], s[:n_real], z[:n_real][perm])
+        other, _ = self.gen(
+            prev_m[:n_real][perm], a3[:n_real][perm], s[:n_real], z[:n_real][perm], speaker=spk[:n_real][perm]
+        )
         l_lex = F.mse_loss(self.vq.encode(other, frozen=True), s[:n_real])
         zr = z[:n_real]
         mu, var = zr.mean(0), zr.var(0, unbiased=False) + 1e-6
@@ -302,15 +309,16 @@ class RhythmicNet(nn.Module):
         l_gen = c.w_rec * l_rec + c.w_perc * l_perc + c.w_lexeme * l_lex + c.w_z * l_z
         return {"gen": l_gen, "rec": l_rec, "perc": l_perc, "lexeme": l_lex, "kl": l_z}
 
-    def rollout(self, first_prev, a3, s, z, per_window: int):
+    def rollout(self, first_prev, a3, s, z, per_window: int, speaker=None):
         """Generate each window's sample blocks one after another from its ground-truth context block.
 
         Parameters
         ----------
         first_prev : Tensor [shape=(B, K, P)]
             Each window's first (context) block.
-        a3, s, z : Tensor [shape=(S, ...)]
-            Per sample block (``S = B * per_window``, window by window): audio of blocks i-1, i, i+1, lexeme, style.
+        a3, s, z, speaker : Tensor [shape=(S, ...)]
+            Per sample block (``S = B * per_window``, window by window): audio of blocks i-1, i, i+1, lexeme, style,
+            speaker index (optional).
 
         Returns
         -------
@@ -320,8 +328,9 @@ class RhythmicNet(nn.Module):
         b = first_prev.shape[0]
         view = lambda x: x.reshape(b, per_window, *x.shape[1:])  # noqa: E731  (S, ...) -> (B, W - 2, ...)
         a3, s, z = view(a3), view(s), view(z)
+        spk = view(speaker) if speaker is not None else None
         prev, state, outs = first_prev, None, []
         for j in range(per_window):
-            prev, state = self.gen(prev, a3[:, j], s[:, j], z[:, j], state)  # (B, K, P)
+            prev, state = self.gen(prev, a3[:, j], s[:, j], z[:, j], state, None if spk is None else spk[:, j])
             outs.append(prev)
         return torch.stack(outs, dim=1).flatten(0, 1)  # (B, W - 2, K, P) -> (S, K, P)

@@ -161,7 +161,8 @@ class BlockGenerator(nn.Module):
         self.e_a = nn.Linear(3 * low_dim, c.audio_feat_dim)  # E_A, one FC layer (eq. 7)
         self.style = nn.Sequential(_conv_stack(c.n_pose, c.hidden, c.style_dim, 2))  # amortised style code z_i
         self.register_buffer("pe", torch.from_numpy(positional_encoding(c.block, c.pe_dim)))
-        n_in = c.motion_feat_dim + c.audio_feat_dim + c.lexeme_dim + c.style_dim + c.pe_dim
+        n_in = c.motion_feat_dim + c.audio_feat_dim + c.lexeme_dim + c.style_dim + c.pe_dim + c.speaker_dim
+        self.speaker = nn.Embedding(max(1, len(c.speakers)), c.speaker_dim) if c.speaker_dim else None
         self.mlp = nn.Sequential(
             nn.Linear(n_in, c.hidden), nn.LeakyReLU(0.2), nn.Linear(c.hidden, c.latent_groups * c.latent_classes)
         )
@@ -173,7 +174,7 @@ class BlockGenerator(nn.Module):
         """Per-block style code ``(B, d_z)`` of motion blocks ``(B, K, P)`` (stands in for one free z per block)."""
         return self.style(m.transpose(1, 2)).mean(dim=2)  # (B, d_z, K) -> (B, d_z)
 
-    def forward(self, prev, a_low3, s, z, state=None):
+    def forward(self, prev, a_low3, s, z, state=None, speaker=None):
         """One block, continuing the LSTM ``state`` of the previous block (None: a fresh start).
 
         Parameters
@@ -188,6 +189,8 @@ class BlockGenerator(nn.Module):
         state : tuple of Tensor, optional
             The decoder LSTM's ``(h, c)`` after the previous block; the authors' generator runs block after block
             with its state carried over.
+        speaker : Tensor [shape=(B,)], long, optional
+            Speaker indices into ``config.speakers`` (default 0).
 
         Returns
         -------
@@ -198,10 +201,12 @@ class BlockGenerator(nn.Module):
         c = self.c
         b, k = prev.shape[0], c.block
         m_feat = self.e_m(prev.transpose(1, 2)).transpose(1, 2)  # (B, P, K) -> (B, d_m, K) -> (B, K, d_m)
-        cond = torch.cat(
-            [m_feat, self.e_a(a_low3), s[:, None].expand(b, k, -1), z[:, None].expand(b, k, -1),
-             self.pe[None].expand(b, k, -1)], dim=2,
-        )  # fmt: skip  # (B, K, n_in)
+        parts = [m_feat, self.e_a(a_low3), s[:, None].expand(b, k, -1), z[:, None].expand(b, k, -1),
+                 self.pe[None].expand(b, k, -1)]  # fmt: skip
+        if self.speaker is not None:
+            spk = speaker if speaker is not None else torch.zeros(b, dtype=torch.long, device=prev.device)
+            parts.append(self.speaker(spk)[:, None].expand(b, k, -1))  # (B, K, speaker_dim)
+        cond = torch.cat(parts, dim=2)  # (B, K, n_in)
         logits = self.mlp(cond).view(b, k, c.latent_groups, c.latent_classes)  # (B, K, H * C) -> (B, K, H, C)
         if self.training:
             w = F.gumbel_softmax(logits, tau=c.gumbel_tau, hard=True, dim=-1)  # one-hot forward, as at run time

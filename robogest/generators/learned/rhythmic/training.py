@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from robogest.data.datasets import speaker_key
 from robogest.data.features import FeatureConfig
 from robogest.data.prep import slice_windows
 from robogest.errors import InputError
@@ -31,6 +32,10 @@ class RhythmicSpec:
 
     def config_from_dict(self, d: dict[str, Any]) -> RhythmicConfig:
         return RhythmicConfig.from_dict(d)
+
+    def fit_config(self, config: RhythmicConfig, takes) -> RhythmicConfig:
+        """The speaker table of the training takes (:func:`robogest.data.speaker_key`)."""
+        return dataclasses.replace(config, speakers=tuple(sorted({speaker_key(t.name) for t in takes})))
 
     def plan_epochs(self, config: RhythmicConfig, epochs: int) -> RhythmicConfig:
         """Give each stage its share of ``epochs`` (at least one each) when training sequentially.
@@ -82,15 +87,17 @@ class RhythmicSpec:
 
         Returns
         -------
-        x : ndarray [shape=(N, W * K, n_mels + D + 1)], float32
-            Standardised time-scaled log-mel, raw text, silent-block flag; block ``w`` is frames ``[w K, (w + 1) K)``.
+        x : LazyWindows [shape=(N, W * K, n_mels + D + 2)], float32
+            Standardised time-scaled log-mel, raw text, silent-block flag, speaker index (``config.speakers``);
+            block ``w`` is frames ``[w K, (w + 1) K)``.
         y : ndarray [shape=(N, W * K, P)], float32
             Normalised poses.
         take_index : ndarray [shape=(N,)], int
         """
         k, m = config.block, config.n_mels
         w = length // k
-        f = m + config.n_text + 1
+        f = m + config.n_text + 2
+        table = {s: j for j, s in enumerate(config.speakers)}
 
         def per_take():  # one take's blocks at a time: (index, (C, K * F), (C, K * P), stride in blocks)
             for i, t in enumerate(takes):
@@ -100,7 +107,8 @@ class RhythmicSpec:
                 tb = take_blocks(t.acoustic[:, :m], t.text, norm, config, tsm, t.poses, beats)
                 n_c = tb.silent.shape[0]
                 flag = np.broadcast_to(tb.silent[:, None, None], (n_c, k, 1))
-                x = np.concatenate([tb.mel, tb.text, flag], axis=2).reshape(n_c, -1)  # (C, K, F) -> (C, K * F)
+                spk = np.full((n_c, k, 1), table.get(speaker_key(t.name), 0), np.float32)  # unseen speaker -> 0
+                x = np.concatenate([tb.mel, tb.text, flag, spk], axis=2).reshape(n_c, -1)  # (C, K, F) -> (C, K * F)
                 yield i, x, tb.poses.reshape(n_c, -1), max(1, round(stride * n_c / t.n_frames))  # frames -> blocks
 
         # a window of W blocks of K * F values is read as (W * K, F)

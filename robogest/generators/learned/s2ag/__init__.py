@@ -2,7 +2,8 @@
 ``config`` (inputs, hyper-parameters), numpy only; ``networks``, ``training`` (the trainer's spec and losses),
 ``inference`` (the checkpoint generator). Importing this package needs PyTorch."""
 
-from robogest.generators.learned.s2ag.config import S2AGConfig, mfcc_from_mel, speaker_key
+from robogest.data.datasets import speaker_key
+from robogest.generators.learned.s2ag.config import S2AGConfig, mfcc_from_mel
 from robogest.generators.learned.s2ag.inference import S2AGGenerator
 from robogest.generators.learned.s2ag.networks import AffectiveEncoder, S2AGDiscriminator, S2AGGeneratorNet, S2AGNet
 from robogest.generators.learned.s2ag.skeleton import (

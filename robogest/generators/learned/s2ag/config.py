@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,16 +30,6 @@ def mfcc_from_mel(mel_db: np.ndarray) -> np.ndarray:
     cep = dct(np.asarray(mel_db, np.float64), type=2, norm="ortho", axis=1)[:, :N_MFCC]  # (T, 13)
     d1 = forward_diff(cep[:, 1:])  # (T, 12)
     return np.concatenate([cep, d1, forward_diff(d1)], axis=1).astype(np.float32)  # (T, 37)
-
-
-_SPEAKER_RE = re.compile(r"^(\d+)_")
-
-
-def speaker_key(take_name: str) -> str:
-    """Speaker of a take from its name: BEAT2's leading speaker number (``"2_scott_0_1_1"`` -> ``"2"``), else
-    ``"default"`` (GENEA/Trinity and plain folders hold one speaker)."""
-    m = _SPEAKER_RE.match(take_name)
-    return m.group(1) if m else "default"
 
 
 @dataclass(frozen=True)

@@ -9,9 +9,10 @@ from typing import Any
 
 import numpy as np
 
+from robogest.data.datasets import speaker_key
 from robogest.data.features import FeatureConfig
 from robogest.data.prep import slice_windows
-from robogest.generators.learned.s2ag.config import S2AGConfig, mfcc_from_mel, speaker_key
+from robogest.generators.learned.s2ag.config import S2AGConfig, mfcc_from_mel
 from robogest.generators.learned.s2ag.networks import F, S2AGNet, torch
 from robogest.generators.learned.s2ag.skeleton import N_EDGES, expmaps_to_directions
 from robogest.learn import config_with_overrides
