@@ -24,6 +24,7 @@ ORDER = [
     "bench_gesticulator.py",
     "bench_s2ag.py",
     "bench_rhythmic.py",
+    "bench_generalize.py",
 ]
 
 

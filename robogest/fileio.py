@@ -1,21 +1,104 @@
-"""Atomic output files: a crash or Ctrl-C never leaves a half-written file behind."""
+"""Safe file handling: output paths checked before any work, atomic output files, size-capped ``.npz`` reading.
+
+A crash, Ctrl-C or a full disk never leaves a half-written file behind, and an output never replaces a
+folder, a device node, a FIFO or a socket (through a symlink or not): robogest writes regular files only.
+"""
 
 from __future__ import annotations
 
 import os
+import stat
 import tempfile
+import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+from robogest.errors import InputError, RobogestError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+#: Largest ``.npz`` robogest reads, bytes of array data once loaded (a trajectory of 24 h at 1 kHz for 32 joints
+#: is 0.7 GB): a crafted header cannot make it allocate more than this.
+MAX_NPZ_BYTES = 2 * 1024**3
+
+
+def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
+    """Refuse an output robogest cannot or must not write; returns the path to write (symlinks resolved).
+
+    Checked without writing anything: the path is not a folder, not a device, FIFO or socket (itself or behind a
+    symlink), not a read-only file, and its nearest existing folder is a writable folder (missing folders below it
+    are created when the file is written). ``what`` names the path in messages (e.g. ``"--save"``).
+
+    Raises
+    ------
+    InputError
+        Naming ``what``, the path and the fix.
+    """
+    text = os.fspath(path)
+    if not text:
+        raise InputError(f"{what}: empty output path; give a file name")
+    real = Path(os.path.realpath(text))  # follows symlinks and '..': a link is written through, not replaced
+    via = f" (via the symlink {text})" if os.path.islink(text) else ""
+    if real.exists():
+        mode = real.stat().st_mode
+        if stat.S_ISDIR(mode):
+            raise InputError(f"{what} {text}: is a folder{via}; give a file name inside it")
+        if not stat.S_ISREG(mode):
+            raise InputError(
+                f"{what} {text}: is a device, FIFO or socket{via}, not a regular file; robogest writes regular "
+                "files only (it replaces them atomically); give a file path"
+            )
+        if not os.access(real, os.W_OK):
+            raise InputError(f"{what} {text}: the file is read-only{via}; make it writable or choose another path")
+    _check_writable_folder(real.parent, what, text)
+    return real
+
+
+def check_output_dir(path: str | os.PathLike, what: str = "output folder") -> Path:
+    """Like :func:`check_output_path` for an output folder: it exists as a writable folder or can be created."""
+    text = os.fspath(path)
+    if not text:
+        raise InputError(f"{what}: empty folder path; give a folder name")
+    real = Path(os.path.realpath(text))
+    if real.exists() and not real.is_dir():
+        raise InputError(f"{what} {text}: is a file, not a folder; give a folder path")
+    _check_writable_folder(real, what, text)
+    return real
+
+
+def _check_writable_folder(folder: Path, what: str, text: str) -> None:
+    """The nearest existing folder at or above ``folder`` is a folder robogest may write in."""
+    while not folder.exists():
+        folder = folder.parent
+    if not folder.is_dir():
+        raise InputError(f"{what} {text}: {folder} is a file, not a folder; choose another path")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"{what} {text}: the folder {folder} is not writable; choose another path")
+
+
+def write_error(path: str | os.PathLike, exc: OSError) -> RobogestError:
+    """One line for an output that failed while being written (disk full, I/O error); nothing was left behind."""
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    return RobogestError(
+        f"{os.fspath(path)}: cannot write ({reason}); nothing was written, free space or choose another path"
+    )
 
 
 def publish(tmp: Path, path: Path) -> None:
     """Give a finished temporary file ordinary permissions (0666 minus the umask; mkstemp makes 0600) and
-    move it over ``path`` atomically. For writers that cannot live inside :func:`atomic_path`."""
+    move it over ``path`` atomically. For writers that cannot live inside :func:`atomic_path`.
+
+    ``path`` is checked again (:func:`check_output_path`) as the last line of defence: a folder, device node,
+    FIFO or socket is never replaced, and a symlink is written through.
+    """
+    real = check_output_path(path)
     mask = os.umask(0)
     os.umask(mask)
     os.chmod(tmp, 0o666 & ~mask)
-    os.replace(tmp, path)
+    os.replace(tmp, real)
 
 
 @contextmanager
@@ -24,14 +107,89 @@ def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
 
     The temporary name ends in ``suffix`` (``".npz"``, ``".png"``...) for writers that pick the format
     from the name. The result gets ordinary permissions (0666 minus the umask), not mkstemp's 0600.
+    A symlink is written through (its target is replaced, the link stays); a folder, device node, FIFO or socket
+    is refused (:func:`check_output_path`), so ``/dev/null`` is never replaced by a regular file. An OSError
+    while writing (disk full) becomes one :class:`RobogestError` line naming ``path``.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or ".tmp", dir=path.parent)
+    real = check_output_path(path)
+    try:
+        real.parent.mkdir(parents=True, exist_ok=True)
+        fd, name = tempfile.mkstemp(prefix=f".{real.name}.", suffix=suffix or ".tmp", dir=real.parent)
+    except OSError as e:
+        raise write_error(path, e) from None
     os.close(fd)
     tmp = Path(name)
     try:
         yield tmp
-        publish(tmp, path)
+        publish(tmp, real)
+    except OSError as e:
+        raise write_error(path, e) from None
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def npz_keys(path: str | os.PathLike, what: str = "") -> list[str]:
+    """Names of the arrays in an ``.npz`` without loading any (to tell a trajectory from a motion file)."""
+    label = f"{what} {os.fspath(path)}".strip()
+    try:
+        with zipfile.ZipFile(path) as zf:
+            return [n[:-4] for n in zf.namelist() if n.endswith(".npy")]
+    except (OSError, zipfile.BadZipFile) as e:
+        raise InputError(f"{label}: not a readable .npz ({type(e).__name__}: {e})") from None
+
+
+def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str = "") -> dict[str, np.ndarray]:
+    """Every array of an ``.npz`` (no pickled objects), checked for size before any is allocated.
+
+    Each member's header is read first: its declared size must fit the bytes stored for it (a crafted header cannot
+    ask for more memory than the file holds) and all arrays together must fit ``max_bytes``.
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file, pickled objects, or sizes over the cap; the message names the file.
+    """
+    import numpy as np
+
+    p = Path(path)
+    label = f"{what} {p}".strip()
+    if not p.is_file():
+        raise InputError(f"{label}: no such file")
+    out: dict[str, np.ndarray] = {}
+    try:
+        with zipfile.ZipFile(p) as zf:
+            total = 0
+            for info in zf.infolist():
+                if not info.filename.endswith(".npy"):
+                    continue
+                with zf.open(info) as f:
+                    version = np.lib.format.read_magic(f)
+                    if version == (1, 0):
+                        shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+                    else:
+                        shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+                nbytes = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                if dtype.hasobject:
+                    raise InputError(
+                        f"{label}: array {info.filename[:-4]!r} holds pickled Python objects, which "
+                        "robogest never loads (they can run code); save plain numeric arrays"
+                    )
+                if nbytes > info.file_size:
+                    raise InputError(
+                        f"{label}: array {info.filename[:-4]!r} declares {nbytes} bytes but the file "
+                        f"holds {info.file_size}; the file is corrupt or crafted"
+                    )
+                total += nbytes
+                if total > max_bytes:
+                    raise InputError(
+                        f"{label}: arrays larger than the {max_bytes / 1024**3:.1f} GiB robogest reads "
+                        "from one .npz; split the file"
+                    )
+        with np.load(p, allow_pickle=False) as z:
+            for k in z.files:
+                out[k] = z[k]
+    except InputError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as e:
+        raise InputError(f"{label}: not a readable .npz ({type(e).__name__}: {e})") from None
+    return out

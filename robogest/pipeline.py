@@ -5,7 +5,7 @@ The CLI and the tests call these functions; nothing here knows about a particula
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +49,13 @@ def load_speech_input(
     if transcript is not None and audio is None:
         raise InputError("--transcript goes with --audio; with TEXT the words are already known")
     if text is not None:
-        return sp.synthesize(text, voice=voice, words_per_minute=words_per_minute)
+        from robogest.generators.tags import TAG, strip_tags
+
+        if not TAG.search(text):
+            return sp.synthesize(text, voice=voice, words_per_minute=words_per_minute)
+        # Gesture tags are not spoken; Speech.text keeps them for the generator.
+        speech = sp.synthesize(strip_tags(text), voice=voice, words_per_minute=words_per_minute)
+        return replace(speech, text=text)
     return sp.load_speech(audio, transcript)
 
 

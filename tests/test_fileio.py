@@ -1,11 +1,14 @@
 from __future__ import annotations
 
+import errno
 import os
 import stat
 
+import numpy as np
 import pytest
 
-from robogest.fileio import atomic_path
+from robogest.errors import InputError, RobogestError
+from robogest.fileio import atomic_path, check_output_path, publish, read_npz
 
 
 def test_atomic_path_publishes_with_ordinary_permissions(tmp_path):
@@ -30,3 +33,97 @@ def test_atomic_path_leaves_nothing_on_error(tmp_path):
         raise RuntimeError("crash mid-write")
     assert out.read_text() == "old"  # the previous file is untouched
     assert [p.name for p in tmp_path.iterdir()] == ["a.npz"]
+
+
+def test_atomic_path_never_replaces_a_device_fifo_or_folder(tmp_path):
+    fifo = tmp_path / "p"
+    os.mkfifo(fifo)
+    (tmp_path / "to_fifo").symlink_to(fifo)
+    (tmp_path / "d").mkdir()
+    cases = [(fifo, "FIFO"), (tmp_path / "to_fifo", "via the symlink"), (tmp_path / "d", "is a folder")]
+    null = tmp_path / "null"  # a stand-in for /dev/null: the real one is never risked
+    try:
+        os.mknod(null, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+        cases.append((null, "device"))
+    except PermissionError:
+        pass  # not root: the FIFO covers special files
+    for target, why in cases:
+        with pytest.raises(InputError, match=why), atomic_path(target):
+            pytest.fail("the block must not run")
+    assert stat.S_ISFIFO(fifo.stat().st_mode) and (tmp_path / "to_fifo").is_symlink()
+    assert not null.exists() or stat.S_ISCHR(null.stat().st_mode)
+
+
+def test_atomic_path_writes_through_a_symlink(tmp_path):
+    (tmp_path / "real.txt").write_text("old")
+    (tmp_path / "link.txt").symlink_to("real.txt")
+    with atomic_path(tmp_path / "link.txt") as tmp:
+        tmp.write_text("new")
+    assert (tmp_path / "link.txt").is_symlink() and (tmp_path / "real.txt").read_text() == "new"
+
+
+def test_atomic_path_write_error_is_one_line_and_leaves_nothing(tmp_path):
+    out = tmp_path / "a.bin"
+    msg = r"a\.bin: cannot write \(No space left on device\); nothing was written"
+    with pytest.raises(RobogestError, match=msg), atomic_path(out) as tmp:
+        tmp.write_text("half")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_atomic_path_on_a_full_disk(full_disk):
+    with pytest.raises(RobogestError, match="No space left on device"), atomic_path(full_disk / "x.bin") as tmp:
+        tmp.write_bytes(b"\1" * 100_000)
+    assert sorted(p.name for p in full_disk.iterdir()) == ["filler"]
+
+
+def test_check_output_path_parent_is_a_file(tmp_path):
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(InputError, match=r"--out .*f/sub/x\.npz: .*f is a file, not a folder"):
+        check_output_path(tmp_path / "f" / "sub" / "x.npz", "--out")
+    assert check_output_path(tmp_path / "new" / "sub" / "x.npz") == tmp_path / "new" / "sub" / "x.npz"
+    assert not (tmp_path / "new").exists()  # checking creates nothing
+
+
+def test_read_npz_refuses_pickles_and_caps_sizes(tmp_path):
+    np.savez(tmp_path / "obj.npz", a=np.array([{"x": 1}], dtype=object))
+    with pytest.raises(InputError, match="pickled Python objects"):
+        read_npz(tmp_path / "obj.npz")
+    np.savez(tmp_path / "big.npz", a=np.zeros(1000), b=np.zeros(1000))
+    with pytest.raises(InputError, match=r"larger than the .* GiB robogest reads"):
+        read_npz(tmp_path / "big.npz", max_bytes=12_000)
+    got = read_npz(tmp_path / "big.npz", max_bytes=16_000)
+    assert sorted(got) == ["a", "b"] and got["a"].shape == (1000,)
+    (tmp_path / "text.npz").write_text("not a zip")
+    with pytest.raises(InputError, match=r"text\.npz: not a readable \.npz"):
+        read_npz(tmp_path / "text.npz")
+
+
+def test_video_writer_full_disk_is_one_line_and_leaves_nothing(full_disk):
+    pytest.importorskip("av")
+    from robogest.backends.render import VideoWriter
+
+    msg = r"v\.mp4: cannot write \(No space left on device\)"
+    with pytest.raises(RobogestError, match=msg), VideoWriter(full_disk / "v.mp4", 64, 64, 25) as w:
+        for k in range(50):
+            w.add_frame(np.full((64, 64, 3), k * 5, np.uint8))
+    assert sorted(p.name for p in full_disk.iterdir()) == ["filler"]
+
+
+def test_checkpoint_on_a_full_disk(full_disk):
+    torch = pytest.importorskip("torch")
+    from robogest.learn.checkpoint import save_checkpoint
+
+    with pytest.raises(RobogestError, match=r"c\.pt: cannot write \(No space left on device\)"):
+        save_checkpoint({"w": torch.zeros(100_000)}, full_disk / "c.pt")
+    assert sorted(p.name for p in full_disk.iterdir()) == ["filler"]
+
+
+def test_publish_never_replaces_a_fifo(tmp_path):
+    fifo = tmp_path / "p"
+    os.mkfifo(fifo)
+    tmp = tmp_path / "t"
+    tmp.write_text("x")
+    with pytest.raises(InputError, match="FIFO"):
+        publish(tmp, fifo)
+    assert stat.S_ISFIFO(fifo.stat().st_mode)

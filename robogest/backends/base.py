@@ -1,18 +1,107 @@
 """The seam between trajectories and whatever moves: MuJoCo, Dynamixel or Feetech servos.
 
 Backends speak radians at the joint; ticks, offsets and gearing stay inside each implementation.
+
+The last step before the hardware is :meth:`Backend.write_goal`, and it is concrete: every goal, whatever made
+it (a trajectory file, the Python API, a live stream, the shutdown ramp), is checked against the robot
+definition alone (finite, inside the joint limits, no faster than the velocity limit from the last goal sent)
+before a subclass's :meth:`Backend._send_goal` may write anything.
 """
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from types import TracebackType
 
 import numpy as np
 
+from robogest.errors import InputError, SafetyError
 from robogest.registry import Registry
 from robogest.robot.config import RobotConfig
+
+#: Position slack of the goal guard (float rounding only), radians.
+GOAL_POS_TOL_RAD = 1e-9
+#: Relative and absolute slack of the guard's per-tick velocity bound (float rounding only).
+GOAL_STEP_RTOL, GOAL_STEP_ATOL_RAD = 1e-6, 1e-9
+
+
+def guard_limits(robot: RobotConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(q_min_rad, q_max_rad, v_max_rad_s)``, each ``(J,)``, read-only: what :func:`check_goal` compares with."""
+    arrays = (robot.q_min_rad, robot.q_max_rad, robot.v_max_rad_s)
+    for a in arrays:
+        a.setflags(write=False)
+    return arrays
+
+
+def check_goal(
+    q_rad: np.ndarray,
+    robot: RobotConfig,
+    reference_rad: np.ndarray,
+    period_s: float,
+    source: str = "",
+    limits: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
+    """The goal guard: return ``q_rad`` as a float array, or raise if any joint's goal is unsafe.
+
+    Only the robot definition counts: a goal must be finite, inside ``[lower_rad, upper_rad]`` and within
+    ``max_velocity_rad_s * period_s`` of ``reference_rad`` (the last goal sent) on every joint.
+
+    Parameters
+    ----------
+    q_rad : ndarray [shape=(J,)], radians
+    robot : RobotConfig
+    reference_rad : ndarray [shape=(J,)], radians
+        The last goal sent (before the first one: the present pose).
+    period_s : float, seconds
+        Control period: the time the joint has to make the step.
+    source : str
+        Where the goal came from, for the message.
+    limits : tuple, optional
+        ``guard_limits(robot)``, when the caller keeps it (building the arrays costs more than the check).
+
+    Raises
+    ------
+    InputError
+        ``q_rad`` is not a numeric ``(J,)`` array.
+    SafetyError
+        One line naming every offending joint, its value and the limit it breaks.
+    """
+    lo, hi, v_max = limits if limits is not None else guard_limits(robot)
+    try:
+        q = np.array(q_rad, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"goal for {robot.name} is not a numeric array of {lo.size} joint angles") from None
+    if q.shape != lo.shape:
+        raise InputError(f"goal has shape {q.shape}; expected ({lo.size},) joint angles for {robot.name}")
+    step_max = v_max * period_s
+    step = np.abs(q - reference_rad)  # NaN/inf in q give NaN/inf here, no warning
+    ok = (q >= lo - GOAL_POS_TOL_RAD) & (q <= hi + GOAL_POS_TOL_RAD)
+    ok &= step <= step_max * (1 + GOAL_STEP_RTOL) + GOAL_STEP_ATOL_RAD
+    if ok.all():  # every comparison with NaN is False, so a finite, in-range, slow goal is the only way here
+        return q
+    names = robot.joint_names
+    bad_value = ~np.isfinite(q)
+    bad_pos = ~bad_value & ((q < lo - GOAL_POS_TOL_RAD) | (q > hi + GOAL_POS_TOL_RAD))
+    bad_step = ~bad_value & ~bad_pos & ~ok
+    problems = []
+    for j in np.flatnonzero(bad_value | bad_pos | bad_step):
+        if bad_value[j]:
+            problems.append(f"{names[j]} = {q[j]} is not finite")
+        elif bad_pos[j]:
+            problems.append(f"{names[j]} = {q[j]:.4f} rad outside [{lo[j]:.4f}, {hi[j]:.4f}] rad")
+        else:
+            problems.append(
+                f"{names[j]} steps {step[j]:.4f} rad in one {1000 * period_s:.1f} ms tick, limit {step_max[j]:.4f} rad "
+                f"({v_max[j]:g} rad/s)"
+            )
+    shown = "; ".join(problems[:3]) + (f"; and {len(problems) - 3} more joints" if len(problems) > 3 else "")
+    raise SafetyError(
+        f"unsafe goal for {robot.name} refused before the bus ({shown}); source: {source or 'write_goal caller'}; "
+        "nothing was sent, the robot goes to rest with torque off; check the trajectory, stream or code that "
+        "made it (limits come from the robot YAML)"
+    )
 
 
 class Backend(ABC):
@@ -27,6 +116,11 @@ class Backend(ABC):
 
     def __init__(self, robot: RobotConfig) -> None:
         self.robot = robot
+        #: Control rate, Hz: the goal guard allows ``max_velocity_rad_s / control_rate_hz`` per goal.
+        self.control_rate_hz = 50.0
+        #: The last goal that passed the guard and was sent, ``(J,)`` radians; None before the first one.
+        self.last_goal_rad: np.ndarray | None = None
+        self._limits = guard_limits(robot)  # the robot is frozen: build its limit arrays once
 
     @property
     def joint_names(self) -> list[str]:
@@ -44,13 +138,82 @@ class Backend(ABC):
     def set_torque(self, on: bool) -> None:
         """Enable or disable holding torque on every joint."""
 
+    def set_control_rate(self, rate_hz: float) -> None:
+        """Rate at which goals will be sent, Hz; the guard's per-goal velocity bound and the shutdown ramp use it."""
+        rate = float(rate_hz)
+        if not (math.isfinite(rate) and rate > 0):
+            raise InputError(f"control rate {rate_hz!r} Hz must be a positive finite number")
+        self.control_rate_hz = rate
+
+    @property
+    def control_period_s(self) -> float:
+        """Seconds between goals, ``1 / control_rate_hz``."""
+        return 1.0 / self.control_rate_hz
+
+    def write_goal(self, q_rad: np.ndarray, *, source: str = "") -> None:
+        """Command joint angles ``(J,)``, radians, after the goal guard (:func:`check_goal`) accepted them.
+
+        A refused goal raises :class:`~robogest.errors.SafetyError` and nothing is written; ``last_goal_rad``
+        stays the last goal actually sent, which is where the shutdown ramp to rest starts.
+        """
+        q = check_goal(q_rad, self.robot, self._goal_reference(), self.control_period_s, source, self._limits)
+        self._send_goal(q)
+        self.last_goal_rad = q.copy()
+
     @abstractmethod
-    def write_goal(self, q_rad: np.ndarray) -> None:
-        """Command joint angles ``(J,)``, radians (already inside the limits)."""
+    def _send_goal(self, q_rad: np.ndarray) -> None:
+        """Write joint angles ``(J,)``, radians, that the guard accepted (finite, in limits, in speed)."""
+
+    def _connected(self) -> None:
+        """Subclasses call this at the end of :meth:`connect`: goals sent before do not count any more."""
+        self.last_goal_rad = None
+
+    def _goal_reference(self) -> np.ndarray:
+        """The pose the next goal is a step from: the last goal sent; before the first one after connecting, the
+        present pose, read now (the robot may have been moved by hand since connect while torque was off)."""
+        if self.last_goal_rad is not None:
+            return self.last_goal_rad
+        return np.array(self.read_positions(), dtype=float)
+
+    def rest_ramp(self) -> np.ndarray:
+        """Goals ``(K, J)``, radians, one per control period, from the last goal sent to the rest pose.
+
+        A minimum-jerk move timed within the robot's velocity and acceleration limits, so every goal passes
+        the guard; empty when already at rest.
+        """
+        from robogest.backends.player import ramp_duration, ramp_sample
+
+        r = self.robot
+        rest = np.clip(r.rest_q_rad, r.q_min_rad, r.q_max_rad)
+        start = np.clip(self._goal_reference(), r.q_min_rad, r.q_max_rad)
+        dur = ramp_duration(start, rest, r.v_max_rad_s, r.a_max_rad_s2)
+        n = math.ceil(dur / self.control_period_s - 1e-9)
+        return np.array([ramp_sample(start, rest, k * self.control_period_s, dur) for k in range(1, n + 1)]).reshape(
+            n, len(rest)
+        )
 
     @abstractmethod
     def disconnect(self) -> None:
         """Release the port/simulator; must be safe to call twice."""
+
+    def shape_target(self, q_target_rad: np.ndarray, rest_q_rad: np.ndarray) -> np.ndarray:
+        """Hook for a health governor, called by the player on every target before limiting.
+
+        Parameters
+        ----------
+        q_target_rad, rest_q_rad : ndarray [shape=(J,)], radians
+
+        Returns
+        -------
+        ndarray [shape=(J,)], radians
+            The target to command; default: unchanged. Servo backends scale the deviation from rest
+            down as the servos heat up (:mod:`robogest.backends.governor`).
+        """
+        return np.asarray(q_target_rad, float)
+
+    def governor_state(self) -> dict[str, float]:
+        """What the health governor is doing (empty when the backend has none)."""
+        return {}
 
     def advance(self, dt_s: float) -> None:  # noqa: B027 - optional hook
         """Advance simulated time; hardware ignores it (the player waits on the clock instead)."""

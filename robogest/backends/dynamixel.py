@@ -1,9 +1,7 @@
 """Dynamixel backend on the ROBOTIS ``dynamixel_sdk``: Protocol 2.0 (X-series) and 1.0 (AX/MX).
 
-Quirks kept here: P2 sync reads go through the SDK's GroupSyncRead transmit, then status packets are
-received one by one and matched to ids (the group API drops the status error byte and with it the
-hardware-alert bit, and ``readRx`` discards every reply after a lost one);
-Protocol 1.0 has no sync read, so positions are read servo by servo.
+Quirks kept here: the Protocol 2.0 status layout (CRC-16, error byte with the hardware-alert bit),
+sign conventions per protocol, and Protocol 1.0 having no sync read (positions are read servo by servo).
 """
 
 from __future__ import annotations
@@ -24,19 +22,14 @@ from robogest.backends.dynamixel_tables import (
     P1Reg,
     XReg,
 )
-from robogest.backends.servo_common import (
-    Raw,
-    ServoBackend,
-    ServoModel,
-    collect_status_packets,
-    describe_bits,
-    sign_magnitude_decode,
-)
+from robogest.backends.servo_common import ServoBackend, ServoModel, describe_bits, sign_magnitude_decode
 from robogest.errors import ConfigError
 from robogest.robot.config import RobotConfig
 
-P2_ID, P2_ERROR, P2_PARAMETER0 = 4, 8, 8  # byte offsets in a Protocol 2.0 status packet (dynamixel_sdk PKT_*)
-CRC_BYTES = 2
+#: X-series models whose address 126 is Present Current (mA units), not Present Load (0.1 %).
+CURRENT_SENSING = frozenset({"XM430-W350", "XL330-M288"})
+#: Protocol 2.0 status packet: id at 4, error byte at 8, parameters from 9, two CRC bytes (dynamixel_sdk PKT_*).
+P2_STATUS_LAYOUT = (4, 8, 9, 2)
 
 
 def _to_signed(v: int, size: int) -> int:
@@ -52,7 +45,10 @@ class DynamixelBackend(ServoBackend):
         super().__init__(robot, port, baudrate, **options)
         p2 = self.protocol == 2.0
         R = XReg if p2 else P1Reg
+        if p2:
+            self.STATUS_LAYOUT = P2_STATUS_LAYOUT
         self.REG = {
+            "model": R.MODEL_NUMBER,
             "goal": R.GOAL_POSITION,
             "present": R.PRESENT_POSITION,
             "torque": R.TORQUE_ENABLE,
@@ -63,13 +59,14 @@ class DynamixelBackend(ServoBackend):
             "max": XReg.MAX_POSITION_LIMIT if p2 else P1Reg.CCW_ANGLE_LIMIT,
         }
 
-    def _lookup_model(self, name: str, sid: int) -> ServoModel:
+    @classmethod
+    def lookup_model(cls, name: str, protocol: float) -> ServoModel:
         key = name.upper().replace("_", "-")
         m = next((m for n, m in MODELS.items() if n == key or n.startswith(key)), None)
         if m is None:
-            raise ConfigError(f"servo id {sid}: unknown Dynamixel model {name!r}; known: {', '.join(MODELS)}")
-        if m.protocol != self.protocol:
-            raise ConfigError(f"servo id {sid}: {m.name} speaks Protocol {m.protocol}, bus says {self.protocol}")
+            raise ConfigError(f"unknown Dynamixel model {name!r}; known: {', '.join(MODELS)}")
+        if m.protocol != protocol:
+            raise ConfigError(f"{m.name} speaks Protocol {m.protocol}, bus says {protocol}")
         return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick)
 
     def _packet_protocol(self) -> float:
@@ -80,36 +77,15 @@ class DynamixelBackend(ServoBackend):
             return _to_signed(raw, reg.value[1])
         return sign_magnitude_decode(raw, P1_SIGN_BITS.get(reg))  # type: ignore[call-overload]
 
-    def _sync_read_raw(self, reg: Enum, ids: list[int]) -> dict[int, Raw]:
-        if self.protocol != 2.0:
-            return super()._sync_read_raw(reg, ids)
-        self._port.is_using = False
-        addr, size = reg.value
-        group = dxl.GroupSyncRead(self._port, self._ph, addr, size)
-        for sid in ids:
-            group.addParam(sid)
-        comm = group.txPacket()
-        if comm != dxl.COMM_SUCCESS:
-            return {sid: (0, False, 0, self._ph.getTxRxResult(comm)) for sid in ids}
-        p0 = P2_PARAMETER0 + 1  # status packets carry the error byte before the data
-        got = collect_status_packets(
-            ids,
-            self._rx_packet,
-            self._port.isPacketTimeout,
-            P2_ID,
-        )
-        self._port.is_using = False
-        out: dict[int, Raw] = {}
-        for sid in ids:
-            pkt = got[sid]
-            if pkt is None or len(pkt) != p0 + size + CRC_BYTES:  # another length: a stale reply to another read
-                out[sid] = (0, False, 0, "no valid status packet (missing or corrupt)")
-                continue
-            raw = int.from_bytes(bytes(pkt[p0 : p0 + size]), "little")
-            out[sid] = (self._decode(reg, raw), True, pkt[P2_ERROR], self._ph.getTxRxResult(dxl.COMM_SUCCESS))
-        return out
+    def _load_is_percent(self, k: int) -> bool:
+        return k < 0 or self.models[k].name not in CURRENT_SENSING  # these report current at address 126
+
+    def _has_sync_read(self) -> bool:
+        return self.protocol == 2.0  # Protocol 1.0 has no SYNC READ: one read per servo
 
     def _rx_packet(self) -> tuple[list[int], bool]:
+        if self.protocol != 2.0:
+            return super()._rx_packet()
         pkt, comm = self._ph.rxPacket(self._port, False)
         return list(pkt), comm == dxl.COMM_SUCCESS
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 # render first: it picks a headless OpenGL backend before mujoco is imported
 from robogest.backends import render as _render  # isort: skip
 
+import contextlib
 import os
 import time
 from collections.abc import Callable
@@ -86,6 +87,42 @@ def load_sim_model(robot: RobotConfig) -> SimModel:
     return SimModel(model, np.array(qpos_idx), np.array(dof_idx), np.array(act_idx), robot_geoms)
 
 
+def wrist_site_positions(robot: RobotConfig, q_rad: np.ndarray) -> np.ndarray:
+    """Positions of the robot's wrist sites (every site named ``*wrist_site``) along joint angles.
+
+    Parameters
+    ----------
+    robot : RobotConfig
+    q_rad : ndarray [shape=(T, J)], radians
+        Joint angles in the robot's YAML order.
+
+    Returns
+    -------
+    ndarray [shape=(T, W, 3)], metres
+        World positions by forward kinematics (no dynamics).
+
+    Raises
+    ------
+    ConfigError
+        The model has no wrist site.
+    """
+    sim = load_sim_model(robot)
+    m = sim.model
+    names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SITE, i) or "" for i in range(m.nsite)]
+    ids = [i for i, n in enumerate(names) if n.endswith("wrist_site")]
+    if not ids:
+        raise ConfigError(f"{robot.path or robot.name}: the model has no site named *wrist_site; add one per wrist")
+    data = mujoco.MjData(m)
+    _reset_to(sim, data, None)
+    q = np.asarray(q_rad, dtype=np.float64)
+    out = np.zeros((q.shape[0], len(ids), 3))
+    for k in range(q.shape[0]):
+        data.qpos[sim.qpos_idx] = q[k]
+        mujoco.mj_kinematics(m, data)
+        out[k] = data.site_xpos[ids]
+    return out
+
+
 def _reset_to(sim: SimModel, data: mujoco.MjData, q_rad: np.ndarray | None) -> None:
     """Home keyframe (if any), then ``q_rad`` on top, at rest (zero velocity), ctrl = q."""
     key = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_KEY, HOME_KEY)
@@ -148,6 +185,7 @@ class MujocoBackend(Backend):
         self._goal = self.data.ctrl[self.sim.act_idx].copy()
         self._t_target = 0.0
         self.set_torque(True)
+        self._connected()
 
     def _need(self) -> tuple[SimModel, mujoco.MjData]:
         if self.sim is None or self.data is None:
@@ -172,14 +210,9 @@ class MujocoBackend(Backend):
             sim.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
         self._torque = on
 
-    def write_goal(self, q_rad: np.ndarray) -> None:
+    def _send_goal(self, q_rad: np.ndarray) -> None:
         sim, data = self._need()
-        q = np.asarray(q_rad, dtype=float)
-        if q.shape != (len(self.joint_names),):
-            raise InputError(f"goal has shape {q.shape}; expected ({len(self.joint_names)},) for {self.robot.name}")
-        if not np.all(np.isfinite(q)):
-            raise SafetyError(f"goal contains NaN/inf: {q}")
-        self._goal = np.clip(q, self.robot.q_min_rad, self.robot.q_max_rad)
+        self._goal = np.array(q_rad, dtype=float)
         data.ctrl[sim.act_idx] = self._goal
 
     def advance(self, dt_s: float) -> None:
@@ -201,10 +234,11 @@ class MujocoBackend(Backend):
         self.data = None
 
     def shutdown(self) -> None:
-        """Glide to rest at the velocity limits (as the hardware backends do), then torque off."""
+        """Ramp to rest within the limits (as the hardware backends do), then torque off."""
         try:
             if self.sim is not None and self._torque:
-                self._glide_to_rest()
+                with contextlib.suppress(SafetyError):  # no guarded way to rest (started outside the limits)
+                    self._glide_to_rest()
         finally:
             if self.sim is not None:
                 super().shutdown()
@@ -212,14 +246,10 @@ class MujocoBackend(Backend):
                 self.disconnect()
 
     def _glide_to_rest(self) -> None:
-        q0 = self.read_positions()
-        rest = self.robot.rest_q_rad
-        t_move = float(np.max(np.abs(rest - q0) / self.robot.v_max_rad_s))
-        dt = 0.02
-        for k in range(1, int(np.ceil(t_move / dt)) + 1):
-            self.write_goal(q0 + (rest - q0) * min(1.0, k * dt / t_move))
-            self.advance(dt)
-        self.write_goal(rest)
+        """The guarded ramp from the last goal sent to rest (as on hardware), then 0.2 s to settle."""
+        for q in self.rest_ramp():
+            self.write_goal(q, source="ramp to rest at shutdown")
+            self.advance(self.control_period_s)
         self.advance(0.2)
 
     # --- extras for tests, the player and reports ------------------------------------------------
@@ -366,6 +396,7 @@ def simulate(
 
     backend = MujocoBackend(robot, start_q_rad=q_cmd[0] if len(q_cmd) else None, record=False)
     backend.connect()
+    backend.set_control_rate(1.0 / backend.sim.model.opt.timestep)  # a guarded goal every physics step
     sim, data = backend._need()
     model = sim.model
     ts = float(model.opt.timestep)
@@ -423,7 +454,7 @@ def simulate(
             if step == n_steps:
                 break
             goal = trajectory.sample(t)[order] if trajectory.n_frames else robot.rest_q_rad
-            data.ctrl[sim.act_idx] = goal
+            backend.write_goal(goal, source=f"trajectory for {trajectory.robot or robot.name}")
             mujoco.mj_step(model, data)
             if _robot_contacts(sim, data):
                 collide_steps += 1

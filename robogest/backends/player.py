@@ -5,10 +5,13 @@ so one slow tick does not shift the rest; ticks that fall more than half a perio
 counted as late and, when a whole period was lost, skipped rather than bunched. Simulated backends
 (``realtime = False``) are advanced by ``1 / rate`` per tick instead of waiting.
 
-Safety: commands are clipped to the trajectory's limits; the robot ramps from wherever it is to
+Safety: the trajectory must match the robot definition (joints, limits, rest pose; limits come from
+the robot, never the file); commands are clipped to the robot's limits and each step to its velocity
+limit from the last goal sent (a late tick does not make a jump); the robot ramps from wherever it is to
 the first pose and back to rest with a minimum-jerk profile timed so that neither the velocity nor
-the acceleration limit is exceeded; ``backend.shutdown`` (rest, then torque off) always runs in a
-``finally``, and SIGTERM is turned into an exception so it takes the same path as Ctrl-C.
+the acceleration limit is exceeded; the backend's guard refuses any goal that still breaks a limit;
+``backend.shutdown`` (rest, then torque off) always runs in a ``finally``, and SIGTERM is turned into an
+exception so it takes the same path as Ctrl-C.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ import numpy as np
 
 from robogest.backends.base import Backend
 from robogest.errors import BackendError, RobogestError
-from robogest.trajectory.types import Trajectory
+from robogest.trajectory.types import Trajectory, check_matches
 
 _MJ_VEL, _MJ_ACC = 1.875, 5.7735  # peak |s'| and |s''| of the minimum-jerk blend on [0, 1]
 
@@ -166,7 +169,8 @@ def play(
         Called every tick.
     time_scale : float
         Trajectory seconds per wall second (tests use > 1 to run faster than real time; audio is
-        skipped when it is not 1).
+        skipped when it is not 1). Each goal is still limited to the robot's velocity limit per tick
+        (``1 / rate_hz``), so a scaled-up trajectory is followed only as fast as that allows.
     read_back : bool
         Read present positions every tick (detects lost servos and hardware errors within one tick).
 
@@ -176,15 +180,22 @@ def play(
 
     Raises
     ------
+    InputError
+        The trajectory does not match ``backend.robot`` (nothing moved).
+    SafetyError
+        The backend refused a goal; the robot was sent to rest and torque turned off.
     BackendError
         A servo or the port failed; the motion was stopped, torque turned off, and the partial
         report is attached as ``error.report``.
     """
     if rate_hz <= 0 or time_scale <= 0:
         raise ValueError("rate_hz and time_scale must be positive")
+    robot = backend.robot
+    check_matches(trajectory, robot)
     period = 1.0 / rate_hz
     report = PlaybackReport()
-    lo, hi = trajectory.q_min_rad, trajectory.q_max_rad
+    lo, hi = robot.q_min_rad, robot.q_max_rad
+    step_max = robot.v_max_rad_s * period
     starts: list[float] = []
     sound = _Audio(audio if time_scale == 1.0 else None, audio_sr)
     wall0 = time.monotonic()
@@ -206,8 +217,11 @@ def play(
                 if now - due > 0.5 * period:
                     report.late_ticks += 1
                 starts.append(now)
-            q = np.clip(sample(t_traj), lo, hi)
-            backend.write_goal(q)
+            q = np.clip(backend.shape_target(sample(t_traj), robot.rest_q_rad), lo, hi)
+            last = backend.last_goal_rad
+            if last is not None:  # after a late tick, catch up at the velocity limit instead of jumping
+                q = last + np.clip(q - last, -step_max, step_max)
+            backend.write_goal(q, source="trajectory playback")
             if read_back:
                 backend.read_positions()
             report.n_ticks += 1
@@ -224,16 +238,14 @@ def play(
 
     with sigterm_as_exception():
         try:
-            set_rate = getattr(backend, "set_control_rate", None)
-            if set_rate is not None:  # serial backends turn their lost-servo time into ticks
-                set_rate(rate_hz)
+            backend.set_control_rate(rate_hz)  # the guard's velocity bound; serial backends' lost-servo ticks
             if not getattr(backend, "is_connected", False):
                 backend.connect()
             q_now = np.clip(backend.read_positions(), lo, hi)
-            backend.write_goal(q_now)  # hold where it is, so enabling torque does not jump
+            backend.write_goal(q_now, source="present pose at start")  # hold, so enabling torque does not jump
             backend.set_torque(True)
             q_first = np.clip(trajectory.sample(0.0), lo, hi)
-            ramp_in = ramp_duration(q_now, q_first, trajectory.v_max_rad_s, trajectory.a_max_rad_s2)
+            ramp_in = ramp_duration(q_now, q_first, robot.v_max_rad_s, robot.a_max_rad_s2)
             report.ramp_in_s = ramp_in
             if ramp_in > 0:
                 run_phase(lambda t: ramp_sample(q_now, q_first, t, ramp_in), ramp_in, None)
@@ -242,9 +254,9 @@ def play(
                 report.audio = sound.start()
 
             run_phase(trajectory.sample, trajectory.duration_s, start_audio)
-            q_last = np.clip(trajectory.sample(trajectory.duration_s), lo, hi)
-            rest = np.clip(trajectory.rest_q_rad, lo, hi)
-            ramp_out = ramp_duration(q_last, rest, trajectory.v_max_rad_s, trajectory.a_max_rad_s2)
+            q_last = np.clip(backend.last_goal_rad, lo, hi)  # where the robot was really sent, not the file
+            rest = np.clip(robot.rest_q_rad, lo, hi)
+            ramp_out = ramp_duration(q_last, rest, robot.v_max_rad_s, robot.a_max_rad_s2)
             run_phase(lambda t: ramp_sample(q_last, rest, t, ramp_out), ramp_out, None)
             _settle(backend, rest, period)
             report.completed = True

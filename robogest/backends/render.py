@@ -31,7 +31,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from robogest.errors import InputError, MissingDependencyError  # noqa: E402
-from robogest.fileio import atomic_path, publish  # noqa: E402
+from robogest.fileio import atomic_path, check_output_path, publish, write_error  # noqa: E402
 
 if TYPE_CHECKING:
     from robogest.robot.config import RobotConfig
@@ -123,15 +123,23 @@ class VideoWriter:
         import av
 
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._real = check_output_path(path)  # no folder, device or FIFO; symlinks written through
         self.fps = int(fps)
         self.width, self.height = int(width), int(height)
-        fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=f".{self.path.stem}.", suffix=".mp4.tmp")
+        try:
+            self._real.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=self._real.parent, prefix=f".{self._real.stem}.", suffix=".mp4.tmp")
+        except OSError as e:
+            raise write_error(self.path, e) from None
         os.close(fd)
         self._tmp = Path(tmp)
         self.n_frames = 0
         try:
-            self._container = av.open(str(self._tmp), mode="w", format="mp4")
+            # Our own file object, so that abort() can always close it (PyAV keeps its own handle open when
+            # flushing fails, e.g. on a full disk); unbuffered, so a full disk fails in a write, which PyAV
+            # re-raises, never in a seek, which it would print as a traceback and drop.
+            self._file = open(self._tmp, "wb", buffering=0)  # noqa: SIM115 - closed by close()/abort()
+            self._container = av.open(self._file, mode="w", format="mp4")
             self._video = self._container.add_stream("libx264", rate=Fraction(self.fps, 1))
             self._video.width, self._video.height = self.width, self.height
             self._video.pix_fmt = "yuv420p"
@@ -141,8 +149,10 @@ class VideoWriter:
             self._audio_pos = 0
             if audio is not None and len(audio):
                 self._setup_audio(np.asarray(audio), int(audio_sr))
-        except Exception:
-            self._tmp.unlink(missing_ok=True)
+        except Exception as e:
+            self.abort()
+            if isinstance(e, OSError):
+                raise write_error(self.path, e) from None
             raise
 
     def _setup_audio(self, audio: np.ndarray, sr: int) -> None:
@@ -191,10 +201,14 @@ class VideoWriter:
         frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(rgb, dtype=np.uint8), format="rgb24")
         frame.pts = self.n_frames
         frame.time_base = Fraction(1, self.fps)
-        for packet in self._video.encode(frame):
-            self._container.mux(packet)
-        self.n_frames += 1
-        self._push_audio(self.n_frames / self.fps)
+        try:
+            for packet in self._video.encode(frame):
+                self._container.mux(packet)
+            self.n_frames += 1
+            self._push_audio(self.n_frames / self.fps)
+        except OSError as e:  # disk full, I/O error: one line, and no partial file
+            self.abort()
+            raise write_error(self.path, e) from None
 
     def close(self) -> Path:
         """Flush both encoders and move the finished file into place; returns the path."""
@@ -206,7 +220,11 @@ class VideoWriter:
             for packet in self._video.encode(None):
                 self._container.mux(packet)
             self._container.close()
-            publish(self._tmp, self.path)
+            self._file.close()
+            publish(self._tmp, self._real)
+        except OSError as e:
+            self.abort()
+            raise write_error(self.path, e) from None
         except BaseException:
             self.abort()
             raise
@@ -214,8 +232,9 @@ class VideoWriter:
 
     def abort(self) -> None:
         """Drop the partial file."""
-        with contextlib.suppress(Exception):
-            self._container.close()
+        for part in (getattr(self, "_container", None), getattr(self, "_file", None)):
+            with contextlib.suppress(Exception):
+                part.close()
         self._tmp.unlink(missing_ok=True)
 
     def __enter__(self) -> VideoWriter:

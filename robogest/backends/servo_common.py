@@ -19,7 +19,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from robogest.backends.base import Backend
-from robogest.errors import BackendError, ConfigError
+from robogest.backends.governor import Governor, GovernorConfig
+from robogest.errors import BackendError, ConfigError, InputError, RobogestError, SafetyError
 from robogest.robot.config import RobotConfig
 
 #: Result of one raw SDK transaction: (value, ok, error byte, comm description).
@@ -50,7 +51,7 @@ class ServoBackend(Backend):
         Extra attempts for one transaction that timed out or came back corrupted; for a sync read,
         extra rounds that re-read only the servos whose reply was missing or corrupt.
     tick_retry_budget : int
-        Servo re-reads allowed across one control tick (:meth:`write_goal` + :meth:`read_positions`),
+        Servo re-reads allowed across one control tick (:meth:`_send_goal` + :meth:`read_positions`),
         so one tick never takes much longer than its period. A position read still missing when the
         budget or the rounds are spent keeps the servo's last known value for that tick; a torque write
         that needs more than the budget stops the motion; a health reading that cannot get through is
@@ -61,7 +62,8 @@ class ServoBackend(Backend):
         row, is declared lost: motion stopped, torque off. The default leaves room for one reply timeout
         (~35 ms with the SDKs' 16 ms latency-timer allowance) so a vanished servo stops the motion within 0.2 s.
     control_rate_hz : float
-        Tick rate used to turn ``lost_after_s`` into ticks; :func:`~robogest.backends.player.play` sets it.
+        Tick rate used to turn ``lost_after_s`` into ticks, and the rate of the goal guard and of the ramp to rest
+        at shutdown; :func:`~robogest.backends.player.play` sets it (:meth:`set_control_rate`).
     health_hz : float
         Each servo's temperature, voltage and load are read at this rate (round robin).
     max_temperature_c : float
@@ -70,8 +72,20 @@ class ServoBackend(Backend):
         Stop outside this range; default: the servos' own voltage-limit registers.
     max_load_pct : float, optional
         Stop when |load| exceeds this percentage of the maximum (off by default).
-    shutdown_rate_hz : float
-        Rate of the ramp to rest in :meth:`shutdown`.
+    governor : bool
+        Scale gestures down as the servos heat up or strain (:mod:`robogest.backends.governor`).
+    warn_temperature_c : float, optional
+        Where the governor starts acting; default ``max_temperature_c - 10``. It starts on load at 60 %
+        (or 60 % of ``max_load_pct`` when that is set).
+    check_limits : bool
+        Refuse to connect when the joint limits map outside the servos' position-limit registers;
+        ``servo calibrate`` turns it off (the zero offsets it replaces may be what is wrong).
+    late_reply_window_s : float
+        How long a reply that missed its deadline may still arrive. Every reply is matched to its
+        request by servo id and length; within this window a read whose answer could not be told apart
+        from such a late reply (same servo, same length, other register) also reads the byte below, so
+        its answer's length is unique; a write drains the input until the line is quiet for
+        ``late_reply_quiet_s`` (25 ms, above a USB adapter's 16 ms latency timer).
     """
 
     family: ClassVar[str] = ""
@@ -92,7 +106,10 @@ class ServoBackend(Backend):
         max_temperature_c: float = 65.0,
         voltage_range_v: tuple[float, float] | None = None,
         max_load_pct: float | None = None,
-        shutdown_rate_hz: float = 50.0,
+        late_reply_window_s: float = 0.5,
+        governor: bool = True,
+        warn_temperature_c: float | None = None,
+        check_limits: bool = True,
         **_ignored: Any,
     ) -> None:
         super().__init__(robot)
@@ -112,12 +129,27 @@ class ServoBackend(Backend):
         self.retries = retries
         self.tick_retry_budget = tick_retry_budget
         self.lost_after_s = lost_after_s
-        self.control_rate_hz = control_rate_hz
+        self.set_control_rate(control_rate_hz)
         self.health_period_s = 1.0 / health_hz if health_hz > 0 else float("inf")
         self.max_temperature_c = max_temperature_c
         self.voltage_range_v = voltage_range_v
         self.max_load_pct = max_load_pct
-        self.shutdown_rate_hz = shutdown_rate_hz
+        self.late_reply_window_s = late_reply_window_s
+        self.check_limits = check_limits
+        load_limit = max_load_pct if max_load_pct is not None else 100.0
+        self.governor = Governor(
+            GovernorConfig(
+                warn_temperature_c=max_temperature_c - 10.0 if warn_temperature_c is None else warn_temperature_c,
+                max_temperature_c=max_temperature_c,
+                warn_load_pct=0.6 * load_limit,
+                max_load_pct=load_limit,
+            ),
+            enabled=governor,
+        )
+        self.late_reply_quiet_s = 0.025
+        self.stale_replies = 0  #: status packets discarded as late answers to earlier requests
+        self.stale_bytes = 0  #: bytes drained while waiting for the line to go quiet
+        self._late: dict[tuple[int, int], tuple[int, float]] = {}  # (id, reply length) -> (address, until)
 
         servos = [bus.servos[n] for n in robot.joint_names]
         self.ids = np.array([s.id for s in servos], dtype=np.int64)
@@ -135,7 +167,6 @@ class ServoBackend(Backend):
         self.port_lost = False
         self.torque_enabled = False
         self.torque_off_attempted = False
-        self.last_goal_rad: np.ndarray | None = None
         self.retry_count = 0  #: re-sent transactions and re-read servos
         self.missed_reads = 0  #: position reads that got no valid reply within the tick (last value kept)
         self.events: list[str] = []  #: retries and health readings worth reporting
@@ -157,10 +188,6 @@ class ServoBackend(Backend):
         self._misses = np.zeros(n, dtype=np.int64)  # consecutive ticks without a valid reading
         self._miss_attempts = np.zeros(n, dtype=np.int64)  # attempts since the last valid reading
 
-    def set_control_rate(self, rate_hz: float) -> None:
-        """Tick rate of the caller (turns ``lost_after_s`` into a tick count)."""
-        self.control_rate_hz = float(rate_hz)
-
     @property
     def lost_after_ticks(self) -> int:
         return max(1, math.ceil(self.lost_after_s * self.control_rate_hz - 1e-9))
@@ -170,8 +197,16 @@ class ServoBackend(Backend):
     #: share these shapes, one being a port of the other). Set by each family.
     sdk: ClassVar[Any] = None
 
-    def _lookup_model(self, name: str, sid: int) -> ServoModel:
+    @classmethod
+    def lookup_model(cls, name: str, protocol: float) -> ServoModel:
+        """Facts of the servo model called ``name`` on a bus of this ``protocol``; ConfigError if unknown there."""
         raise NotImplementedError
+
+    def _lookup_model(self, name: str, sid: int) -> ServoModel:
+        try:
+            return self.lookup_model(name, self.protocol)
+        except ConfigError as e:
+            raise ConfigError(f"servo id {sid}: {e}") from None
 
     def _packet_protocol(self) -> Any:
         """The ``PacketHandler`` argument (protocol version, or byte order)."""
@@ -181,6 +216,9 @@ class ServoBackend(Backend):
         """Before every transaction: free the SDK's port for it (families add their quirks)."""
         self._port.is_using = False
 
+    #: Status packet layout: index of the id, of the error byte, of the first parameter, and checksum bytes.
+    STATUS_LAYOUT: ClassVar[tuple[int, int, int, int]] = (2, 4, 5, 1)
+
     def _encode(self, reg: Enum, value: int) -> int:
         """Signed value -> raw register value (default: two's complement in the register's width)."""
         return value & ((1 << (8 * reg.value[1])) - 1)
@@ -188,43 +226,142 @@ class ServoBackend(Backend):
     def _decode(self, reg: Enum, raw: int) -> int:
         raise NotImplementedError
 
-    def _sync_bytes(self, raw: int, size: int) -> list[int]:
-        """A raw register value as the bytes of a sync write (default: little-endian)."""
+    def _to_bus_bytes(self, raw: int, size: int) -> list[int]:
+        """A raw register value as the bytes on the bus (default: little-endian)."""
         return list(raw.to_bytes(size, "little"))
 
+    def _from_bus_bytes(self, data: bytes | list[int]) -> int:
+        """Bytes from the bus -> raw register value (default: little-endian)."""
+        return int.from_bytes(bytes(data), "little")
+
+    def _rx_packet(self) -> tuple[list[int], bool]:
+        """The next status packet from the SDK and whether it arrived whole with a valid checksum."""
+        pkt, comm = self._ph.rxPacket(self._port)
+        return list(pkt), comm == self.sdk.COMM_SUCCESS
+
+    def _has_sync_read(self) -> bool:
+        return True
+
     def _open(self) -> None:
-        self._port = self.sdk.PortHandler(self.port_name)
+        self._port = open_port_exclusive(self.sdk, self.port_name, self.baudrate)
         self._ph = self.sdk.PacketHandler(self._packet_protocol())
-        if not self._port.openPort() or not self._port.setBaudRate(self.baudrate):
-            raise OSError(f"baud rate {self.baudrate} not supported by the SDK")
         self._writers = {}
+        self._late.clear()
 
     def _close(self) -> None:
-        # Both vendor SDKs share the PortHandler shape (one is a port of the other).
         port = getattr(self, "_port", None)
-        if port is not None and port.is_open:
-            port.closePort()
+        if port is not None:
+            close_port(port)
 
-    def _result(self, value: int, comm: int, err: int) -> Raw:
-        self._port.is_using = False
-        return value, comm == self.sdk.COMM_SUCCESS, err, self._ph.getTxRxResult(comm)
+    # --- raw transactions: every reply is matched to its request ---------------------------------
+    def _begin(self, expect: list[int], n_params: int, addr: int, *, widen: bool = False) -> int:
+        """Clear the input before a request expecting ``n_params`` bytes from servos ``expect``; returns
+        how many bytes below ``addr`` a read must also ask for.
+
+        A reply that missed its own transaction's deadline may still be on its way; bytes already here
+        are dropped, and replies arriving later are told apart by servo id and length. When a reply
+        still in flight from one of these servos has the expected length but answers another address,
+        a read (``widen``) also asks for the byte(s) below ``addr`` so that its answer has a length no
+        late reply has; a write instead drains the input until the line has been quiet for
+        ``late_reply_quiet_s``.
+        """
+        now = time.monotonic()
+        for key in [k for k, (_, until) in self._late.items() if until < now]:
+            del self._late[key]
+
+        def clash(k: int) -> bool:
+            return any(self._late.get((sid, n_params + k), (addr - k,))[0] != addr - k for sid in expect)
+
+        k = 0
+        while clash(k) and widen and k < addr:
+            k += 1
+        self._port.ser.reset_input_buffer()
+        if clash(k):
+            self._drain_quiet()
+            self._late.clear()
+            return 0
+        return k
+
+    def _drain_quiet(self) -> None:
+        ser = self._port.ser
+        t_end = time.monotonic() + self.late_reply_window_s
+        last = time.monotonic()
+        while True:
+            n = ser.in_waiting
+            now = time.monotonic()
+            if n:
+                self.stale_bytes += len(ser.read(n))
+                last = now
+            elif now - last >= self.late_reply_quiet_s or now > t_end:
+                return
+            time.sleep(0.001)
+
+    def _mark_late(self, ids: list[int], n_params: int, addr: int) -> None:
+        """Replies from ``ids`` to the request at ``addr`` did not arrive in time: they may still come."""
+        until = time.monotonic() + self.late_reply_window_s
+        for sid in ids:
+            self._late[(sid, n_params)] = (addr, until)
+
+    def _split_status(self, pkt: list[int]) -> tuple[int, int, list[int]]:
+        id_at, err_at, p0, trailer = self.STATUS_LAYOUT
+        return pkt[id_at], pkt[err_at], pkt[p0 : len(pkt) - trailer]
+
+    def _await_status(self, sid: int, n_params: int, addr: int) -> tuple[list[int], bool, int, str]:
+        """Receive until the status packet of ``sid`` with ``n_params`` parameters, or the deadline.
+
+        Packets from other servos or of another length are late replies to earlier requests: they
+        are counted and skipped, never taken as this request's answer.
+        """
+        while True:
+            pkt, valid = self._rx_packet()
+            if not valid:
+                self._mark_late([sid], n_params, addr)
+                self._port.is_using = False
+                return [], False, 0, "no reply (timeout)" if not pkt else "corrupt reply (bad checksum or cut short)"
+            pid, err, params = self._split_status(pkt)
+            if pid == sid and len(params) == n_params:
+                self._port.is_using = False
+                return params, True, err, "ok"
+            self.stale_replies += 1
+            self.events.append(
+                f"discarded a late reply ({len(params)} bytes from id {pid}) while waiting for {self._who(sid)}"
+            )
+
+    def _read_block_raw(self, sid: int, addr: int, size: int) -> tuple[list[int], bool, int, str]:
+        """``size`` bytes from ``addr`` of one servo, as sent (bus byte order)."""
+        self._prep()
+        k = self._begin([sid], size, addr, widen=True)
+        comm = self._ph.readTx(self._port, sid, addr - k, size + k)
+        if comm != self.sdk.COMM_SUCCESS:
+            self._port.is_using = False
+            return [], False, 0, self._ph.getTxRxResult(comm)
+        data, ok, err, text = self._await_status(sid, size + k, addr - k)
+        return data[k:], ok, err, text
+
+    def _write_block_raw(self, sid: int, addr: int, data: list[int]) -> tuple[list[int], bool, int, str]:
+        self._prep()
+        self._begin([sid], 0, addr)
+        comm = self._ph.writeTxOnly(self._port, sid, addr, len(data), data)
+        if comm != self.sdk.COMM_SUCCESS:
+            self._port.is_using = False
+            return [], False, 0, self._ph.getTxRxResult(comm)
+        _, _, p0, trailer = self.STATUS_LAYOUT
+        self._port.setPacketTimeout(p0 + trailer)
+        return self._await_status(sid, 0, addr)
 
     def _ping_raw(self, sid: int) -> Raw:
-        """(model number, ok, error byte, comm text)."""
-        self._prep()
-        return self._result(*self._ph.ping(self._port, sid))
+        """(model number, ok, error byte, comm text): a read of the Model Number register (the SDKs' ping
+        takes any packet from the id as its answer, and Feetech's raises on a short one)."""
+        return self._read_raw(sid, self.REG["model"])
 
     def _read_raw(self, sid: int, reg: Enum) -> Raw:
-        self._prep()
-        addr, size = reg.value
-        value, comm, err = getattr(self._ph, f"read{size}ByteTxRx")(self._port, sid, addr)
-        return self._result(self._decode(reg, value), comm, err)
+        data, ok, err, comm = self._read_block_raw(sid, *reg.value)
+        return (self._decode(reg, self._from_bus_bytes(data)) if ok else 0), ok, err, comm
 
     def _write_raw(self, sid: int, reg: Enum, value: int) -> Raw:
-        self._prep()
         addr, size = reg.value
-        comm, err = getattr(self._ph, f"write{size}ByteTxRx")(self._port, sid, addr, self._encode(reg, value))
-        return self._result(0, comm, err)
+        _, ok, err, comm = self._write_block_raw(sid, addr, self._to_bus_bytes(self._encode(reg, value), size))
+        return 0, ok, err, comm
 
     def _sync_write_raw(self, reg: Enum, values: dict[int, int]) -> None:
         self._prep()
@@ -234,14 +371,46 @@ class ServoBackend(Backend):
             gsw = self._writers[reg] = self.sdk.GroupSyncWrite(self._port, self._ph, addr, size)
         gsw.clearParam()
         for sid, v in values.items():
-            gsw.addParam(sid, self._sync_bytes(self._encode(reg, v), size))
+            gsw.addParam(sid, self._to_bus_bytes(self._encode(reg, v), size))
         comm = gsw.txPacket()
+        self._port.is_using = False
         if comm != self.sdk.COMM_SUCCESS:
             raise OSError(f"sync write {reg.name} failed: {self._ph.getTxRxResult(comm)}")
 
     def _sync_read_raw(self, reg: Enum, ids: list[int]) -> dict[int, Raw]:
-        """Default: one read per servo (Protocol 1.0 has no sync read)."""
-        return {i: self._read_raw(i, reg) for i in ids}
+        """One SYNC READ, status packets matched to ids (the SDKs' group API drops each status error byte,
+        and its ``readRx`` discards every reply after a lost one); one read per servo without sync read."""
+        if not self._has_sync_read():
+            return {i: self._read_raw(i, reg) for i in ids}
+        self._prep()
+        addr, size = reg.value
+        k = self._begin(ids, size, addr, widen=True)
+        addr, size = addr - k, size + k
+        group = self.sdk.GroupSyncRead(self._port, self._ph, addr, size)
+        for sid in ids:
+            group.addParam(sid)
+        comm = group.txPacket()
+        if comm != self.sdk.COMM_SUCCESS:
+            self._port.is_using = False
+            return {sid: (0, False, 0, self._ph.getTxRxResult(comm)) for sid in ids}
+        id_at = self.STATUS_LAYOUT[0]
+        pkt_len = self.STATUS_LAYOUT[2] + size + self.STATUS_LAYOUT[3]
+        got = collect_status_packets(ids, self._rx_packet, self._port.isPacketTimeout, id_at, length=pkt_len)
+        self._port.is_using = False
+        out: dict[int, Raw] = {}
+        for sid in ids:
+            pkt = got[sid]
+            if pkt is None:
+                self._mark_late([sid], size, addr)
+                out[sid] = (0, False, 0, "no valid status packet (missing or corrupt)")
+                continue
+            _, err, params = self._split_status(pkt)
+            out[sid] = (self._decode(reg, self._from_bus_bytes(params[k:])), True, err, "ok")
+        return out
+
+    def _load_is_percent(self, k: int) -> bool:
+        """Whether joint ``k``'s load register holds 0.1 % of the maximum (current-sensing models hold mA)."""
+        return True
 
     def _hardware_error(self, sid: int, err: int) -> str | None:
         """Text of the fault flagged by status error byte ``err``, or None when it is clean."""
@@ -268,7 +437,7 @@ class ServoBackend(Backend):
         self.port_lost = True
         return BackendError(f"serial port {self.port_name} lost while {what}: {e}; torque off attempted")
 
-    def _call(self, sid: int, what: str, reg: Enum | None, fn: Callable[[], Raw]) -> int:
+    def _call(self, sid: int, what: str, reg: Enum | None, fn: Callable[[], tuple[Any, bool, int, str]]) -> Any:
         """Run one transaction, retrying timeouts/corruption within the per-op and per-tick budgets."""
         attempts = self.retries + 1
         last = ""
@@ -417,6 +586,8 @@ class ServoBackend(Backend):
             return
         try:
             self._open()
+        except RobogestError:
+            raise
         except Exception as e:
             raise BackendError(f"cannot open serial port {self.port_name} at {self.baudrate} baud: {e}") from None
         self._shut_down = False
@@ -434,23 +605,34 @@ class ServoBackend(Backend):
                     continue
                 if found != model.number:
                     wrong.append(f"{self._who(sid)}: expected model {model.name} ({model.number}), found {found}")
+            scan = f"robogest servo scan --port {self.port_name}"
+            if len(missing) == len(self.ids):
+                raise BackendError(
+                    f"no servo answered on {self.port_name} at {self.baudrate} baud with {self.family} protocol "
+                    f"{self.protocol:g} (expected ids {', '.join(str(int(i)) for i in self.ids)}): wrong baud rate, "
+                    f"protocol or port, or no power? `{scan}` shows what answers"
+                )
             if missing or wrong:
                 raise BackendError(
-                    f"servo check failed on {self.port_name} at {self.baudrate} baud:\n  "
-                    + "\n  ".join(missing + wrong)
+                    f"servo check failed on {self.port_name} at {self.baudrate} baud: "
+                    + "; ".join(missing + wrong)
+                    + f"; `{scan}` shows what answers"
                 )
             lo = self._sync_read(self.REG["min"])
             hi = self._sync_read(self.REG["max"])
             self._tick_lo, self._tick_hi = np.minimum(lo, hi), np.maximum(lo, hi)
-            self._check_limits_fit()
+            if self.check_limits:
+                self._check_limits_fit()
             for sid in self.ids:
                 self._budget = self.tick_retry_budget
                 self._volt_limits[int(sid)] = self.voltage_range_v or self._voltage_limits_v(int(sid))
             self.is_connected = True
+            self.governor.reset()
             self._budget = self.tick_retry_budget
             self._positions_known = False
             self._next_health = time.monotonic() + self.health_period_s / max(1, len(self.ids))
             self.read_positions()
+            self._connected()
         except BaseException:
             self._safe_close()
             raise
@@ -479,11 +661,10 @@ class ServoBackend(Backend):
         self._maybe_check_health()
         return self.ticks_to_rad(ticks)
 
-    def write_goal(self, q_rad: np.ndarray) -> None:
+    def _send_goal(self, q_rad: np.ndarray) -> None:
         self._budget = self.tick_retry_budget  # a new control tick starts here
         ticks = np.clip(self.rad_to_ticks(q_rad), self._tick_lo, self._tick_hi)
         self._sync_write(self.REG["goal"], ticks)
-        self.last_goal_rad = np.asarray(q_rad, float).copy()
 
     def set_torque(self, on: bool) -> None:
         """Torque on/off, one confirmed write per servo (a lost sync write must not leave torque on)."""
@@ -520,7 +701,7 @@ class ServoBackend(Backend):
             if self.is_connected and self.torque_enabled and not self.port_lost:
                 try:
                     self._ramp_to_rest()
-                except BackendError as e:
+                except (BackendError, SafetyError) as e:  # torque still goes off below
                     problems.append(str(e))
         finally:
             try:
@@ -537,22 +718,11 @@ class ServoBackend(Backend):
         self.events.extend(f"shutdown: {p}" for p in problems)
 
     def _ramp_to_rest(self) -> None:
-        from robogest.backends.player import ramp_duration, ramp_sample
-
-        rest = np.clip(self.robot.rest_q_rad, self.robot.q_min_rad, self.robot.q_max_rad)
-        start = self.last_goal_rad if self.last_goal_rad is not None else self.read_positions()
-        start = np.clip(start, self.robot.q_min_rad, self.robot.q_max_rad)
-        dur = ramp_duration(start, rest, self.robot.v_max_rad_s, self.robot.a_max_rad_s2)
-        period = 1.0 / self.shutdown_rate_hz
+        """From the last goal sent to rest, one guarded goal per control period, paced by the clock."""
         t0 = time.monotonic()
-        k = 1
-        while True:
-            t = k * period
-            self.write_goal(ramp_sample(start, rest, t, dur))
-            if t >= dur:
-                break
-            k += 1
-            time.sleep(max(0.0, t0 + k * period - time.monotonic()))
+        for k, q in enumerate(self.rest_ramp()):
+            time.sleep(max(0.0, t0 + k * self.control_period_s - time.monotonic()))
+            self.write_goal(q, source="ramp to rest at shutdown")
 
     # --- health ----------------------------------------------------------------------------------
     def _maybe_check_health(self) -> None:
@@ -578,15 +748,42 @@ class ServoBackend(Backend):
             self._health_unread_since.pop(sid, None)
 
     def read_health(self, sid: int) -> dict[str, float]:
-        """Temperature (°C), voltage (V) and load (% of max, signed) of one servo."""
+        """Temperature (°C), voltage (V) and load (% of max, signed) of one servo, in one read of the
+        block that holds the three registers (its length matches no other read, so a late reply to
+        another request cannot pass for it)."""
+        regs = [self.REG["temperature"], self.REG["voltage"], self.REG["load"]]
+        lo = min(r.value[0] for r in regs)
+        n = max(r.value[0] + r.value[1] for r in regs) - lo
+        block = self._call(sid, "reading", None, lambda: self._read_block_raw(sid, lo, n))
+
+        def value(reg: Enum) -> int:
+            a, size = reg.value
+            return self._decode(reg, self._from_bus_bytes(block[a - lo : a - lo + size]))
+
         return {
-            "temperature_c": float(self.read_register(sid, self.REG["temperature"])),
-            "voltage_v": self.read_register(sid, self.REG["voltage"]) / 10.0,
-            "load_pct": self.read_register(sid, self.REG["load"]) / 10.0,
+            "temperature_c": float(value(regs[0])),
+            "voltage_v": value(regs[1]) / 10.0,
+            "load_pct": value(regs[2]) / 10.0,
         }
 
+    def shape_target(self, q_target_rad: np.ndarray, rest_q_rad: np.ndarray) -> np.ndarray:
+        return self.governor.shape(q_target_rad, rest_q_rad)
+
+    def governor_state(self) -> dict[str, float]:
+        return self.governor.state()
+
     def check_health(self, sid: int) -> dict[str, float]:
+        """Read one servo's health, feed the governor, and stop past the hard limits."""
         h = self.read_health(sid)
+        before = self.governor.target_factor()
+        k = int(np.nonzero(self.ids == sid)[0][0]) if sid in self.ids else -1
+        self.governor.observe(sid, h["temperature_c"], h["load_pct"] if self._load_is_percent(k) else None)
+        after = self.governor.target_factor()
+        if self.governor.enabled and after < 1.0 <= before:
+            self.events.append(
+                f"health governor: {self._who(sid)} at {h['temperature_c']:.0f} °C, load {abs(h['load_pct']):.0f} % "
+                f"(warning from {self.governor.config.warn_temperature_c:.0f} °C); gestures scaled down, rests longer"
+            )
         lo, hi = self._volt_limits.get(sid, (0.0, float("inf")))
         if h["temperature_c"] > self.max_temperature_c:
             why = f"temperature {h['temperature_c']:.0f} °C above the {self.max_temperature_c:.0f} °C limit"
@@ -615,6 +812,7 @@ def collect_status_packets(
     receive: Callable[[], tuple[list[int], bool]],
     timed_out: Callable[[], bool],
     id_at: int,
+    length: int | None = None,
 ) -> dict[int, list[int] | None]:
     """Match the status packets of one sync read to servo ids: ``{id: packet, or None when missing/corrupt}``.
 
@@ -622,13 +820,16 @@ def collect_status_packets(
     whether the read's deadline has passed. The SDKs' ``readRx(id)`` skips packets of other ids
     while looking for its own, so one lost reply used to swallow every reply after it; here each
     packet goes to the id it names. Servos answer in the order asked, so a reply from a later id
-    means the earlier missing ones are not coming, and no time is spent waiting for them.
+    means the earlier missing ones are not coming, and no time is spent waiting for them. With
+    ``length``, a valid packet of another length is a late reply to another request and is skipped.
     """
     pending = list(ids)
     out: dict[int, list[int] | None] = {}
     while pending:
         pkt, valid = receive()
         sid = pkt[id_at] if len(pkt) > id_at else None
+        if valid and length is not None and len(pkt) != length:
+            continue  # a late reply to another request
         if sid in pending:
             j = pending.index(sid)
             for earlier in pending[:j]:
@@ -642,6 +843,62 @@ def collect_status_packets(
     for sid in pending:
         out[sid] = None
     return out
+
+
+def open_port_exclusive(sdk: Any, port_name: str, baudrate: int) -> Any:
+    """The vendor SDK's ``PortHandler`` on ``port_name``, opened with an exclusive lock.
+
+    The lock (``flock``, taken by pyserial before it touches the port's settings) keeps a second
+    robogest process or tool from opening the port mid-motion; ``TIOCEXCL`` also keeps out other
+    programs that open it without root rights. Both SDKs' handlers have the same shape.
+
+    Raises
+    ------
+    BackendError
+        The port is missing or in use; the message names the port.
+    InputError
+        The SDK does not support ``baudrate``.
+    """
+    import errno
+    import fcntl
+    import termios
+
+    import serial
+
+    handler = sdk.PortHandler(port_name)
+    if handler.getCFlagBaud(baudrate) <= 0:
+        raise InputError(f"baud rate {baudrate} is not supported by {sdk.__name__}; use a standard rate")
+    ser = serial.Serial(baudrate=baudrate, bytesize=serial.EIGHTBITS, timeout=0, exclusive=True)
+    ser.port = port_name
+    try:
+        ser.open()
+    except (serial.SerialException, OSError) as e:
+        if getattr(e, "errno", None) in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY):
+            raise BackendError(
+                f"serial port {port_name} is in use by another program (another robogest or a servo tool); "
+                "stop it first"
+            ) from None
+        raise BackendError(f"cannot open serial port {port_name}: {e}") from None
+    with contextlib.suppress(OSError, termios.error, AttributeError):
+        fcntl.ioctl(ser.fileno(), termios.TIOCEXCL)
+    ser.reset_input_buffer()
+    handler.ser, handler.is_open, handler.baudrate = ser, True, baudrate
+    handler.tx_time_per_byte = (1000.0 / baudrate) * 10.0
+    return handler
+
+
+def close_port(handler: Any) -> None:
+    """Undo :func:`open_port_exclusive` (``TIOCEXCL`` would outlive the close on a port still open elsewhere)."""
+    import fcntl
+    import termios
+
+    ser = getattr(handler, "ser", None)
+    if ser is None or not ser.is_open:
+        return
+    with contextlib.suppress(OSError, termios.error, ValueError, AttributeError):
+        fcntl.ioctl(ser.fileno(), termios.TIOCNXCL)
+    with contextlib.suppress(Exception):
+        handler.closePort()
 
 
 def _is_port_error(e: BaseException) -> bool:

@@ -27,6 +27,68 @@ def add_speech_args(p: argparse.ArgumentParser, text_positional: bool = True) ->
     p.add_argument("--wpm", type=int, default=160, help="speaking rate for TEXT, words/min (default: %(default)s)")
 
 
+#: Named styles for ``--style``: the ``--amount`` each stands for.
+STYLES = {"calm": 0.5, "neutral": 1.0, "lively": 1.5}
+
+
+def add_gesture_args(p: argparse.ArgumentParser) -> None:
+    """Designer controls of the default generator: how much it gestures and with which units."""
+    p.add_argument("--amount", type=float, metavar="X", help="gesture size and frequency, 0-2 (default 1; 0 = none)")
+    p.add_argument("--style", choices=sorted(STYLES), help="named amount: calm 0.5, neutral 1, lively 1.5")
+    p.add_argument(
+        "--gestures",
+        default="auto",
+        metavar="none|DIR|FILE",
+        help="'none' keeps only idle breathing and the rest pose; a folder or YAML file of gesture units adds "
+        "to (or replaces by name) the built-in ones (also: $ROBOGEST_GESTURES). In TEXT, ^gesture(NAME) before a "
+        "word pins unit NAME to it",
+    )
+    p.add_argument(
+        "--semantic",
+        choices=["keywords", "embedding"],
+        default="keywords",
+        help="how semantic gestures are chosen: trigger words (default) or, with the learn extra, also by "
+        "sentence-embedding similarity to each unit's meaning",
+    )
+
+
+def generator_options(args: argparse.Namespace) -> dict:
+    """Keyword options for ``make_generator`` from the gesture arguments (checked: one line per mistake)."""
+    from robogest.errors import InputError
+
+    opts: dict = {}
+    if args.amount is not None and args.style is not None:
+        raise InputError("give --amount or --style, not both")
+    amount = STYLES[args.style] if args.style else args.amount
+    custom = amount is not None or args.gestures != "auto" or args.semantic != "keywords"
+    if custom and args.generator != "rhythm":
+        raise InputError(
+            f"--amount, --style, --gestures and --semantic are options of the 'rhythm' generator, "
+            f"not {args.generator!r}"
+        )
+    if amount is not None:
+        if not 0.0 <= amount <= 2.0:
+            raise InputError(f"--amount must be within [0, 2], got {amount}")
+        opts["amount"] = float(amount)
+    if args.semantic != "keywords":
+        opts["semantic"] = args.semantic
+    if args.gestures == "none":
+        opts["gestures"] = "none"
+    elif args.gestures != "auto":
+        from robogest.generators import lexicon as lx
+
+        path = Path(args.gestures)
+        if not path.exists():
+            raise InputError(f"--gestures {path}: no such folder or file; give 'none' or a folder of gesture YAMLs")
+        opts["repertoire"] = lx.Repertoire(lx.load_units([path, *lx.search_path()]))
+    return opts
+
+
+def speech_inputs(args: argparse.Namespace) -> dict[str, str | None]:
+    """The files :func:`speech_from_args` reads, by flag, for :func:`robogest.cli.checks.check_outputs`."""
+    return {"--audio": args.audio, "--transcript": args.transcript}
+
+
 def speech_from_args(args: argparse.Namespace) -> Speech:
     from robogest.pipeline import load_speech_input
 

@@ -12,7 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from robogest.cli import checks
 from robogest.errors import InputError, MissingDependencyError, RobogestError
+from robogest.fileio import npz_keys
 
 MOTION_SUFFIXES = (".bvh", ".npz")
 AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".mp3")
@@ -25,8 +27,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="objective metrics of generated gestures or robot trajectories",
         description="Compare generated motion (--pred) with ground truth (--gt) and/or speech (--audio): "
         "acceleration/jerk, wrist-speed histograms, MAJE/MAD, Fréchet feature distances, chance-corrected "
-        "beat sync (PMB, BeatAlign), silence behaviour; for trajectories limit violations, jerk and time to "
-        "rest. Folders are paired by file stem.",
+        "beat sync (PMB, BeatAlign on onset beats; stroke sync: wrist-speed peaks on audio onsets), silence "
+        "behaviour; for trajectories limit violations, jerk, time to rest and stroke sync of the robot's wrist sites."
+        " Folders are paired by file stem.",
     )
     p.add_argument("--pred", required=True, metavar="PATH", help="generated motion/trajectory file or folder")
     p.add_argument("--gt", metavar="PATH", help="ground-truth file or folder (same stems as --pred)")
@@ -35,7 +38,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--json", metavar="FILE", help="write all metrics as JSON (atomically)")
     p.add_argument("--plots", metavar="DIR", help="write velocity histograms, PMB curves, trajectory plots")
     p.add_argument(
-        "--shifts", type=int, default=100, help="circular shifts for chance-corrected beat scores (default 100)"
+        "--shifts",
+        type=checks.number(2, 100_000, integer=True),
+        default=100,
+        help="circular shifts for chance-corrected beat scores, 2..100000 (default 100)",
     )
     p.add_argument(
         "--sim",
@@ -74,13 +80,10 @@ def _match(pred: Path, others: list[Path] | None, single: bool, what: str) -> Pa
 def load_input(path: Path):
     """``("trajectory", Trajectory)`` or ``("motion", HumanMotion)``; InputError naming the file otherwise."""
     try:
-        if path.suffix.lower() == ".npz":
-            with np.load(path, allow_pickle=False) as z:
-                is_traj = "q_rad" in z.files
-            if is_traj:
-                from robogest.trajectory.types import Trajectory
+        if path.suffix.lower() == ".npz" and "q_rad" in npz_keys(path):
+            from robogest.trajectory.types import Trajectory
 
-                return "trajectory", Trajectory.load(path)
+            return "trajectory", Trajectory.load(path)
         try:
             from robogest.motion import load_motion
         except ImportError:
@@ -112,6 +115,23 @@ def load_speech_for(audio: Path, transcript: Path | None):
 # ----------------------------------------------------------------------------------------------- core
 
 
+def _robot_wrists(traj, achieved_q_rad: np.ndarray | None) -> np.ndarray | None:
+    """Wrist-site positions ``(T, W, 3)`` m of the robot a trajectory names (its achieved motion when simulated),
+    or None when the robot is not known here: stroke sync is then left out, the other metrics still run."""
+    from robogest.backends.mujoco_sim import wrist_site_positions
+    from robogest.robot import find_robot
+
+    if not traj.robot:
+        return None
+    try:
+        robot = find_robot(traj.robot)
+    except RobogestError:
+        return None
+    order = [list(traj.joint_names).index(n) for n in robot.joint_names]
+    q = achieved_q_rad if achieved_q_rad is not None else traj.q_rad[:, order]  # robot's joint order
+    return wrist_site_positions(robot, q)
+
+
 def evaluate_files(
     pred_path: Path,
     gt_path: Path | None,
@@ -127,11 +147,14 @@ def evaluate_files(
     gt_kind, gt = load_input(gt_path) if gt_path else (None, None)
     if gt is not None and gt_kind != kind:
         raise InputError(f"{gt_path}: is a {gt_kind} but {pred_path} is a {kind}; compare like with like")
-    beats = spans = None
+    beats = spans = onsets = None
     if audio_path is not None:
+        from robogest.eval.beats import audio_onsets
+
         speech = load_speech_for(audio_path, transcript_path)
-        beats = np.asarray(speech.beats_s, dtype=np.float64)
+        beats = np.asarray(speech.beats_s, dtype=np.float64)[~np.asarray(speech.beat_is_pseudo, dtype=bool)]
         spans = [tuple(map(float, s)) for s in speech.silent_spans]
+        onsets = audio_onsets(speech.audio, speech.sr)
     res: dict
     if kind == "trajectory":
         gt_q = None
@@ -140,7 +163,7 @@ def evaluate_files(
                 raise InputError(f"{gt_path}: joints {gt.joint_names} differ from {pred_path}'s {pred.joint_names}")
             t = pred.t_s[pred.t_s <= gt.duration_s + 1e-9]
             gt_q = np.array([gt.sample(x) for x in t]).reshape(len(t), -1)  # pred's rate, gt's span
-        achieved = None
+        achieved = wrists = None
         if sim:
             from robogest.backends.mujoco_sim import simulate
             from robogest.robot import find_robot
@@ -148,7 +171,11 @@ def evaluate_files(
             if not pred.robot:
                 raise InputError(f"{pred_path}: the trajectory names no robot, so --sim cannot simulate it")
             achieved = simulate(pred, find_robot(pred.robot)).q_achieved_rad
-        res = evaluate_trajectory(pred, gt_q, beats, spans, n_shifts=n_shifts, achieved_q_rad=achieved)
+        if onsets is not None:
+            wrists = _robot_wrists(pred, achieved)
+        res = evaluate_trajectory(
+            pred, gt_q, beats, spans, n_shifts=n_shifts, achieved_q_rad=achieved, onsets_s=onsets, wrist_pos_m=wrists
+        )
     else:
         if gt is not None and gt.skeleton.names != pred.skeleton.names:
             raise InputError(f"{gt_path}: skeleton differs from {pred_path}'s")
@@ -156,7 +183,9 @@ def evaluate_files(
         if gt is not None:
             res_gt = gt.resample(pred.fps) if gt.fps != pred.fps else gt
             gt_pos = res_gt.positions()
-        res = evaluate_motion(pred.positions(), pred.fps, pred.skeleton.names, gt_pos, beats, spans, n_shifts)
+        res = evaluate_motion(
+            pred.positions(), pred.fps, pred.skeleton.names, gt_pos, beats, spans, n_shifts, onsets_s=onsets
+        )
         if gt is not None and gt.fps != pred.fps:
             res["gt_resampled_from_fps"] = float(gt.fps)
     res["files"] = {
@@ -207,8 +236,11 @@ def run_eval(args: argparse.Namespace) -> int:
     gt_files = _files(Path(args.gt), MOTION_SUFFIXES, "ground truth") if args.gt else None
     audio_files = _files(Path(args.audio), AUDIO_SUFFIXES, "audio") if args.audio else None
     tr_files = _files(Path(args.transcript), TRANSCRIPT_SUFFIXES, "transcript") if args.transcript else None
-    if args.shifts < 2:
-        raise InputError(f"--shifts must be at least 2, got {args.shifts}")
+    checks.check_outputs(
+        {"--json": args.json},
+        {"--pred": pred_files, "--gt": gt_files, "--audio": audio_files, "--transcript": tr_files},
+        folders={"--plots": args.plots},
+    )
     results: dict[str, dict] = {}
     for pf in pred_files:
         gf = _match(pf, gt_files, single, "ground truth")

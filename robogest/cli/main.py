@@ -18,6 +18,7 @@ import sys
 import warnings
 from collections.abc import Callable, Sequence
 
+from robogest.cli.checks import OneLineParser
 from robogest.errors import RobogestError
 
 #: Subcommand modules under ``robogest.cli``; each defines ``register(subparsers) -> None`` and sets
@@ -26,8 +27,10 @@ _MODULES = ("speech_cmds", "robots_cmds", "speak_cmds", "servo_cmds", "eval_cmds
 
 EPILOG = """exit codes:
   0  success
-  1  other robogest error
-  2  bad input (audio, transcript, motion file, option value)
+  1  other robogest error, e.g. an output could not be written (disk full; no partial file is left)
+     or out of memory
+  2  bad input (audio, transcript, motion file, option value, output path); checked before any work:
+     an output that is an input or another output, a folder, a device or FIFO, or not writable
   3  bad robot definition or config file (the message names file and key)
   4  safety refusal (e.g. NaN from a generator)
   5  hardware or simulator failure (servo missing, in error, port lost); torque was turned off
@@ -62,7 +65,7 @@ class _VersionAction(argparse.Action):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="robogest",
         description="Co-speech gestures for servo-driven humanoid robots: speech in, safe gestures out, "
         "on Dynamixel/Feetech servos or in MuJoCo.",
@@ -138,6 +141,9 @@ def _run(argv: Sequence[str] | None) -> int:
     except KeyboardInterrupt:
         print("robogest: interrupted", file=sys.stderr)
         return 130
+    except MemoryError:
+        print("robogest: error: out of memory; the input is too large for this machine", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ import argparse
 import math
 from pathlib import Path
 
+from robogest.cli import checks
 from robogest.cli.common import TextTable, add_json_flag, print_json, print_table, print_text
 from robogest.errors import ConfigError
 from robogest.robot.config import RobotConfig
@@ -13,7 +14,7 @@ from robogest.robot.registry import DEFAULT_ROBOT, find_robot, list_robots
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser("robots", help="list robot definitions, show one, or check its servos on a port")
+    p = subparsers.add_parser("robots", help="list, show, validate or import robot definitions; check servos on a port")
     sub = p.add_subparsers(dest="robots_command", metavar="ACTION")
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
@@ -24,13 +25,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p_show = sub.add_parser("show", help="joints, limits, retargeting vectors and servos of one robot")
     p_show.add_argument("robot", nargs="?", default=DEFAULT_ROBOT, help=f"name or YAML path (default {DEFAULT_ROBOT})")
     p_show.add_argument("--render", metavar="PNG", type=Path, help="also render the robot at rest to this PNG")
-    p_show.add_argument("--size", default="640x480", help="image size for --render, WIDTHxHEIGHT (default 640x480)")
+    p_show.add_argument(
+        "--size",
+        type=checks.frame_size,
+        default="640x480",
+        help="--render size, WIDTHxHEIGHT (default 640x480)",
+    )
     add_json_flag(p_show)
     p_show.set_defaults(func=cmd_show)
 
     from robogest.cli.servo_cmds import add_check_parser
 
     add_check_parser(sub)
+
+    from robogest.cli.robot_files_cmds import add_parsers
+
+    add_parsers(sub)
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -126,23 +136,15 @@ def show_robot(robot: RobotConfig) -> None:
     print_table(t)
 
 
-def _parse_size(text: str) -> tuple[int, int]:
-    from robogest.errors import InputError
-
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise InputError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 640x480") from None
-    return w, h
-
-
 def cmd_show(args: argparse.Namespace) -> int:
+    if args.render is not None:
+        checks.check_outputs({"--render": args.render}, {"ROBOT": args.robot if Path(args.robot).is_file() else None})
     robot = find_robot(args.robot)
     rendered = None
     if args.render is not None:
         from robogest.backends.render import render_png
 
-        w, h = _parse_size(args.size)
+        w, h = args.size
         rendered = render_png(robot, None, args.render, width=w, height=h)
     if args.json:
         print_json({**robot_as_dict(robot), "rendered": str(rendered) if rendered else None})

@@ -1,19 +1,17 @@
-"""``robogest virtual-bus`` and ``robogest servo scan|ping|read|write|check``: hardware bring-up commands."""
+"""``robogest virtual-bus`` and ``robogest servo scan|doctor|calibrate|jog|ping|read|write|check``: bring-up."""
 
 from __future__ import annotations
 
 import argparse
-import contextlib
+import os
 import signal
 import sys
 import threading
 from typing import Any
 
-from robogest.errors import BackendError, InputError
+from robogest.errors import BackendError, ConfigError, InputError, SafetyError
 
-_DXL_BAUDS = (57600, 1_000_000, 115200, 2_000_000, 3_000_000, 4_000_000, 9600)
-_FT_BAUDS = (1_000_000, 500_000, 115200, 57600, 38400, 19200)
-_PROTOCOLS = ("dxl2", "dxl1", "sts", "scs")
+_PROTOCOLS = ("dxl2", "sts", "scs", "dxl1")
 
 
 def add_check_parser(sub: Any) -> None:
@@ -30,21 +28,73 @@ def register(subparsers: Any) -> None:
     vb.add_argument("--robot", required=True, help="robot name or YAML path (needs a bus section)")
     vb.add_argument("--faults", default=None, help="fault spec, e.g. 'noreply=0.05,hwerror=3:overload@2.0'")
     vb.add_argument("--record", default=None, help="write the bus recording (.npz) here on exit")
+    vb.add_argument(
+        "--return-delay-time", type=int, default=0,
+        help="Return Delay Time of every servo, 2 us units (default: 0; -1: each model's factory value)",
+    )  # fmt: skip
     vb.set_defaults(func=_virtual_bus)
 
-    servo = subparsers.add_parser("servo", help="talk to servos directly: scan, ping, read, write, check")
+    servo = subparsers.add_parser(
+        "servo", help="talk to servos directly: scan, doctor, calibrate, jog, ping, read, write, check"
+    )
     ss = servo.add_subparsers(dest="servo_command", metavar="ACTION")
-    scan = ss.add_parser("scan", help="broadcast-ping every protocol/baud (or the given ones)")
+    scan = ss.add_parser(
+        "scan", help="find every servo: broadcast ping per protocol and baud rate, the common ones first"
+    )
     scan.add_argument("--port", required=True)
     scan.add_argument("--protocol", choices=_PROTOCOLS, action="append", help="repeatable; default all")
     scan.add_argument("--baud", type=int, action="append", help="repeatable; default the common ones")
+    scan.add_argument("--max-id", type=int, default=252, help="highest id to wait for (default: %(default)s)")
+    scan.add_argument("--per-id", action="store_true", help="ask ids one by one (servos that ignore broadcasts)")
+    scan.add_argument("--all", action="store_true", help="try every protocol, not only up to the first that answers")
+    scan.add_argument("--json", action="store_true", help="print a JSON list instead of one line per servo")
     scan.set_defaults(func=_scan)
+    doc = ss.add_parser(
+        "doctor",
+        help="check (and with --fix, set) what breaks real buses: latency timer, return delay, baud, limits, power",
+    )
+    doc.add_argument("--port", required=True)
+    doc.add_argument("--robot", help="robot name or YAML: also check ids, baud and position limits against it")
+    doc.add_argument("--protocol", choices=_PROTOCOLS, action="append", help="without --robot: repeatable")
+    doc.add_argument("--baud", type=int, action="append", help="without --robot: repeatable")
+    doc.add_argument("--fix", action="store_true", help="set what can be set (turns torque off: support the arms)")
+    doc.set_defaults(func=_doctor)
+    cal = ss.add_parser(
+        "calibrate",
+        help="torque off, you move each joint to its zero pose and both ends; writes a calibrated copy of the YAML",
+    )
+    cal.add_argument("--robot", required=True, help="robot name or YAML path")
+    cal.add_argument("--port", default=None, help="serial port (default: the YAML's bus.port)")
+    cal.add_argument("--out", default=None, help="output YAML (default: NAME.calibrated.yaml beside the original)")
+    cal.add_argument("--joint", action="append", help="calibrate only these joints (repeatable)")
+    cal.add_argument("--margin-rad", type=float, default=0.05, help="kept inside each measured end (default: 0.05)")
+    cal.set_defaults(func=_calibrate)
+    jog = ss.add_parser(
+        "jog", help="move one joint to an angle within its limits, gently; then back to rest and torque off"
+    )
+    jog.add_argument("--robot", required=True, help="robot name or YAML path")
+    jog.add_argument("joint", help="joint name")
+    jog.add_argument("angle", type=float, help="target angle, radians (must lie within the joint's limits)")
+    jog.add_argument("--port", default=None, help="serial port (default: the YAML's bus.port)")
+    jog.add_argument("--speed", type=float, default=0.25, help="fraction of the joint's speed limit (default: 0.25)")
+    jog.add_argument("--hold", type=float, default=1.0, help="seconds to hold the angle (default: %(default)s)")
+    jog.set_defaults(func=_jog)
     for name in ("ping", "read", "write"):
-        p = ss.add_parser(name, help=f"{name} one servo")
+        p = ss.add_parser(
+            name,
+            help=f"{name} one servo",
+            epilog="With --robot, a write of the goal position outside that joint's limits is refused (exit 4) "
+            "and nothing is written."
+            if name == "write"
+            else None,
+        )
         p.add_argument("--port", required=True)
         p.add_argument("--id", type=int, required=True)
-        p.add_argument("--protocol", choices=_PROTOCOLS, default="dxl2")
-        p.add_argument("--baud", type=int, default=1_000_000)
+        robot_s = "the --robot's, else " if name == "write" else ""
+        p.add_argument("--protocol", choices=_PROTOCOLS, default=None, help=f"default: {robot_s}dxl2")
+        p.add_argument("--baud", type=int, default=None, help=f"default: {robot_s}1000000")
+        if name == "write":
+            p.add_argument("--robot", help="robot name or YAML path: goal positions are checked against its limits")
         if name != "ping":
             g = p.add_mutually_exclusive_group(required=True)
             g.add_argument("--register", help="register name, e.g. PRESENT_POSITION")
@@ -59,11 +109,16 @@ def register(subparsers: Any) -> None:
 
 # --- virtual-bus ---------------------------------------------------------------------------------
 def _virtual_bus(args: argparse.Namespace) -> int:
+    from robogest.cli.checks import check_outputs
     from robogest.robot.registry import find_robot
     from robogest.virtualbus import FaultSpec, VirtualBus
 
+    check_outputs({"--record": args.record}, {"--robot": args.robot if os.path.isfile(args.robot) else None})
     robot = find_robot(args.robot)
-    bus = VirtualBus(robot, FaultSpec.parse(args.faults))
+    rdt = None if args.return_delay_time < 0 else args.return_delay_time
+    if rdt is not None and rdt > 254:
+        raise InputError(f"--return-delay-time {rdt} is out of range; use 0..254, or -1 for the factory value")
+    bus = VirtualBus(robot, FaultSpec.parse(args.faults), return_delay_time=rdt)
     stop = threading.Event()
     old = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     bus.start()
@@ -90,87 +145,40 @@ def _virtual_bus(args: argparse.Namespace) -> int:
 
 
 # --- raw access ----------------------------------------------------------------------------------
-class _Link:
-    """A port opened with one vendor SDK for one protocol."""
+def _link(port: str, protocol: str, baud: int) -> Any:
+    from robogest.backends.bringup import ServoLink
 
-    def __init__(self, port: str, protocol: str, baud: int) -> None:
-        self.protocol = protocol
-        if protocol.startswith("dxl"):
-            import dynamixel_sdk as sdk
+    return ServoLink(port, protocol, baud)
 
-            self.ph = sdk.PacketHandler(2.0 if protocol == "dxl2" else 1.0)
-        else:
-            import scservo_sdk as sdk
 
-            self.ph = sdk.PacketHandler(0 if protocol == "sts" else 1)
-        self.sdk = sdk
-        self.port = sdk.PortHandler(port)
-        try:
-            ok = self.port.openPort() and self.port.setBaudRate(baud)
-        except Exception as e:
-            raise BackendError(f"cannot open serial port {port}: {e}") from None
-        if not ok:
-            raise InputError(f"baud rate {baud} is not supported by the {protocol} SDK")
-
-    def close(self) -> None:
-        with contextlib.suppress(Exception):
-            self.port.closePort()
-
-    def registers(self) -> Any:
-        from robogest.backends.dynamixel_tables import P1Reg, XReg
-        from robogest.backends.feetech_tables import SCSReg, STSReg
-
-        return {"dxl2": XReg, "dxl1": P1Reg, "sts": STSReg, "scs": SCSReg}[self.protocol]
-
-    def ok(self, comm: int) -> bool:
-        return comm == self.sdk.COMM_SUCCESS
-
-    def model_name(self, number: int) -> str:
-        from robogest.backends.dynamixel_tables import MODELS as DM
-        from robogest.backends.feetech_tables import MODELS as FM
-
-        for m in (*DM.values(), *FM.values()):
-            if m.number == number:
-                return m.name
-        return "?"
+def _status(what: str, done: int, total: int) -> None:
+    """Progress on a terminal: one line rewritten in place on stderr."""
+    if sys.stderr.isatty():
+        end = "\n" if done >= total else ""
+        print(f"\r\033[Kscanning {what} ({done}/{total})", end=end, file=sys.stderr, flush=True)
 
 
 def _scan(args: argparse.Namespace) -> int:
-    protocols = args.protocol or list(_PROTOCOLS)
-    found_any = False
-    for proto in protocols:
-        bauds = args.baud or (_DXL_BAUDS if proto.startswith("dxl") else _FT_BAUDS)
-        for baud in bauds:
-            link = _Link(args.port, proto, baud)
-            try:
-                rows = _scan_one(link)
-            finally:
-                link.close()
-            for sid, model, fw in rows:
-                found_any = True
-                name = link.model_name(model)
-                print(f"{proto:5s} {baud:8d} baud  id {sid:3d}  model {model:5d} ({name})  firmware {fw}")
-    if not found_any:
-        print(f"no servo answered on {args.port}", file=sys.stderr)
+    import json
+
+    from robogest.backends.bringup import scan
+
+    found = scan(
+        args.port, args.protocol, args.baud, max_id=args.max_id, per_id=args.per_id, all_protocols=args.all,
+        progress=lambda k, n, what: _status(what, k, n),
+    )  # fmt: skip
+    if args.json:
+        print(json.dumps([f.as_dict() for f in found], indent=1))
+    else:
+        for f in found:
+            print(f.line())
+    if not found:
+        print(f"no servo answered on {args.port} (check power and wiring; try --per-id)", file=sys.stderr)
         return 1
     return 0
 
 
-def _scan_one(link: _Link) -> list[tuple[int, int, int]]:
-    if link.protocol == "dxl2":
-        data, comm = link.ph.broadcastPing(link.port)
-        return [(sid, v[0], v[1]) for sid, v in sorted(data.items())] if link.ok(comm) else []
-    rows = []
-    fw_addr = 2 if link.protocol == "dxl1" else 0
-    for sid in range(0, 253):
-        model, comm, _ = link.ph.ping(link.port, sid)
-        if link.ok(comm):
-            fw, _, _ = link.ph.read1ByteTxRx(link.port, sid, fw_addr)
-            rows.append((sid, model, fw))
-    return rows
-
-
-def _resolve(link: _Link, args: argparse.Namespace) -> tuple[str, int, int]:
+def _resolve(link: Any, args: argparse.Namespace) -> tuple[str, int, int]:
     if args.register:
         regs = link.registers()
         key = args.register.upper()
@@ -183,18 +191,73 @@ def _resolve(link: _Link, args: argparse.Namespace) -> tuple[str, int, int]:
     return f"address {args.addr}", args.addr, args.size or 1
 
 
+def _robot_protocol(robot: Any) -> str:
+    """The ``--protocol`` name of a robot's bus."""
+    bus = robot.bus
+    if bus.family == "dynamixel":
+        return "dxl2" if bus.protocol == 2.0 else "dxl1"
+    return "sts" if bus.protocol == 0.0 else "scs"
+
+
+def _check_goal_write(robot: Any, args: argparse.Namespace, name: str, addr: int, size: int, regs: Any) -> None:
+    """Refuse (nothing written) a goal-position write outside the joint limits of the servo's joint in ``robot``."""
+    g_addr, g_size = regs.GOAL_POSITION.value
+    if not (addr < g_addr + g_size and g_addr < addr + size):
+        return  # does not touch the goal position
+    if (addr, size) != (g_addr, g_size):
+        raise SafetyError(
+            f"servo id {args.id}: writing {name} overlaps GOAL_POSITION; write it as --register GOAL_POSITION so it "
+            f"can be checked against robot {robot.name}'s joint limits"
+        )
+    import numpy as np
+
+    import robogest.backends.dynamixel
+    import robogest.backends.feetech  # noqa: F401 - register the families
+    from robogest.backends.base import get_backend_factory
+
+    joints = {s.id: j for j, s in robot.bus.servos.items()}
+    if args.id not in joints:
+        raise InputError(f"servo id {args.id} is not in robot {robot.name} (ids {sorted(joints)}); check --id")
+    backend = get_backend_factory(robot.bus.family)(robot, port=args.port)  # the mapping only; opens nothing
+    k = robot.joint_names.index(joints[args.id])
+    ends = backend.rad_to_ticks(robot.q_min_rad)[k], backend.rad_to_ticks(robot.q_max_rad)[k]
+    lo, hi = int(min(ends)), int(max(ends))
+    if not lo <= args.value <= hi:
+        q = float(backend.ticks_to_rad(np.full(len(robot.joints), args.value))[k])
+        raise SafetyError(
+            f"servo id {args.id} (joint {joints[args.id]}): goal position {args.value} ({q:+.3f} rad) is outside "
+            f"robot {robot.name}'s joint limits, ticks [{lo}, {hi}] = [{robot.q_min_rad[k]:+.3f}, "
+            f"{robot.q_max_rad[k]:+.3f}] rad; nothing written"
+        )
+
+
 def _one(args: argparse.Namespace) -> int:
-    link = _Link(args.port, args.protocol, args.baud)
+    robot = None
+    if getattr(args, "robot", None):
+        from robogest.robot.registry import find_robot
+
+        robot = find_robot(args.robot)
+        if robot.bus is None:
+            raise ConfigError(f"robot {robot.name!r} has no bus section; add one or leave out --robot")
+        if args.protocol and args.protocol != _robot_protocol(robot):
+            raise InputError(
+                f"--protocol {args.protocol} does not match robot {robot.name} ({_robot_protocol(robot)}); "
+                "leave out --protocol to use the robot's"
+            )
+    protocol = args.protocol or (_robot_protocol(robot) if robot else "dxl2")
+    baud = args.baud or (robot.bus.baudrate if robot else 1_000_000)
+    link = _link(args.port, protocol, baud)
     try:
         ph, port = link.ph, link.port
         if args.func is _one and not hasattr(args, "register"):
-            model, comm, err = ph.ping(port, args.id)
-            if not link.ok(comm):
-                raise BackendError(f"servo id {args.id}: no answer to ping ({ph.getTxRxResult(comm)})")
-            print(f"id {args.id}: model {model} ({link.model_name(model)}), error byte 0x{err:02X}")
+            # a Model Number read, not the SDK's ping: scservo_sdk's raises on a short or late reply
+            model = link.read(args.id, link.reg("MODEL_NUMBER"))
+            print(f"id {args.id}: model {model} ({link.model_name(model)})")
             return 0
         name, addr, size = _resolve(link, args)
         if hasattr(args, "value"):
+            if robot is not None:
+                _check_goal_write(robot, args, name, addr, size, link.registers())
             fn = {1: ph.write1ByteTxRx, 2: ph.write2ByteTxRx, 4: ph.write4ByteTxRx}[size]
             comm, err = fn(port, args.id, addr, args.value)
             if not link.ok(comm):
@@ -243,3 +306,21 @@ def _check(args: argparse.Namespace) -> int:
         return 0 if bad == 0 and ok_temp and np.all(np.isfinite(q)) else 5
     finally:
         backend.disconnect()
+
+
+def _doctor(args: argparse.Namespace) -> int:
+    from robogest.cli.servo_bringup_cmds import doctor
+
+    return doctor(args)
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from robogest.cli.servo_bringup_cmds import calibrate
+
+    return calibrate(args)
+
+
+def _jog(args: argparse.Namespace) -> int:
+    from robogest.cli.servo_bringup_cmds import jog
+
+    return jog(args)

@@ -3,11 +3,20 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 import numpy as np
 
-from robogest.cli.common import add_speech_args, ensure_audio_file, speech_from_args
+from robogest.cli import checks
+from robogest.cli.common import (
+    add_gesture_args,
+    add_speech_args,
+    ensure_audio_file,
+    generator_options,
+    speech_from_args,
+    speech_inputs,
+)
 from robogest.cli.progress import progress_bar
 from robogest.robot.registry import DEFAULT_ROBOT
 
@@ -15,6 +24,7 @@ SPEAK_EPILOG = """examples:
   robogest speak "Hello, I am a robot. Nice to meet you!" --video out/hello.mp4
   robogest speak --audio talk.wav --transcript talk.TextGrid --robot humanoid_sts3215 --save out/talk.npz
   robogest speak "Hi" --backend dynamixel --port /dev/ttyUSB0
+  robogest speak "Look ^gesture(point_away) over there. It is huge!" --style lively
 
 With --backend sim (the default) nothing moves but the MuJoCo model; with dynamixel/feetech the robot's
 bus section gives ids and models, --port/--baud override it. Every command goes through the safety layer
@@ -30,8 +40,8 @@ def _add_output_args(p: argparse.ArgumentParser) -> None:
         "--backend", default="sim", help="sim (MuJoCo, default), dynamixel, feetech, or an installed plugin's backend"
     )
     p.add_argument("--port", help="serial port for dynamixel/feetech (default: the robot YAML's bus.port)")
-    p.add_argument("--baud", type=int, help="baud rate (default: the robot YAML's bus.baudrate)")
-    p.add_argument("--fps", type=float, default=50.0, help="command rate, Hz (default: %(default)s)")
+    p.add_argument("--baud", type=checks.baud, help="baud rate (default: the robot YAML's bus.baudrate)")
+    p.add_argument("--fps", type=checks.rate_hz, default=50.0, help="command rate, 1..1000 Hz (default: %(default)s)")
     p.add_argument("--save", metavar="FILE.npz", help="write the final command trajectory (and the audio as .wav)")
     p.add_argument(
         "--export",
@@ -61,7 +71,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="gesture generator: rhythm, gesticulator, rhythmic, s2ag, or an installed plugin's (default: %(default)s)",
     )
     p.add_argument("--checkpoint", metavar="FILE", help="trained weights for a learned generator")
-    p.add_argument("--seed", type=int, default=0, help="random seed; same input + seed = same motion")
+    p.add_argument(
+        "--seed", type=checks.seed, default=0, help="random seed, 0..2**32-1; same input + seed = same motion"
+    )
+    add_gesture_args(p)
     _add_output_args(p)
     p.set_defaults(func=run_speak)
 
@@ -75,6 +88,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--audio", metavar="FILE", help="audio to play/mux with the motion")
     _add_output_args(q)
     q.set_defaults(func=run_play)
+
+
+def _check_paths(args: argparse.Namespace, inputs: dict[str, str | None]) -> None:
+    """Refuse bad output paths before any work (see :func:`robogest.cli.checks.check_outputs`)."""
+    outputs = {"--save": args.save, "--video": args.video, "--plot": args.plot}
+    if args.export and Path(args.export).suffix:  # a file (.mcap, .csv); a bag folder is check_export's to judge
+        outputs["--export"] = args.export
+    if args.save and getattr(args, "text", None) is not None:  # synthesized speech is saved beside --save
+        outputs["--save's audio"] = str(Path(args.save).with_suffix(".wav"))
+    robot_file = args.robot if os.path.isfile(args.robot) else None
+    checks.check_outputs(outputs, {**inputs, "--robot": robot_file})
 
 
 def _backend_options(args: argparse.Namespace) -> dict:
@@ -134,10 +158,11 @@ def run_speak(args: argparse.Namespace) -> int:
 
     if args.checkpoint and args.generator == "rhythm":
         raise InputError("--checkpoint is for learned generators; the default 'rhythm' generator needs none")
+    _check_paths(args, {**speech_inputs(args), "--checkpoint": args.checkpoint})
     _check_export(args)
     robot = find_robot(args.robot)
     speech = speech_from_args(args)
-    opts = {"checkpoint": args.checkpoint} if args.checkpoint else {}
+    opts = {"checkpoint": args.checkpoint} if args.checkpoint else generator_options(args)
     result = speak(speech, robot, args.generator, seed=args.seed, fps=args.fps, generator_options=opts)
     traj = result.trajectory
     if args.save:
@@ -160,34 +185,28 @@ def run_speak(args: argparse.Namespace) -> int:
 
 def run_play(args: argparse.Namespace) -> int:
     from robogest.errors import InputError
+    from robogest.fileio import npz_keys
     from robogest.pipeline import motion_to_trajectory
     from robogest.robot import find_robot
     from robogest.safety import check_limits
-    from robogest.trajectory import Trajectory
+    from robogest.trajectory import Trajectory, check_matches
 
-    _check_export(args)
-    robot = find_robot(args.robot)
     path = Path(args.motion)
     if not path.is_file():
         raise InputError(f"{path}: no such motion file")
+    _check_paths(args, {"MOTION": args.motion, "--audio": args.audio})
+    _check_export(args)
+    robot = find_robot(args.robot)
     audio, sr = None, 16000
     if args.audio:
         from robogest.speech import load_speech
 
         sp = load_speech(args.audio)
         audio, sr = sp.audio, sp.sr
-    is_traj = False
-    if path.suffix == ".npz":
-        with np.load(path, allow_pickle=False) as z:
-            is_traj = "q_rad" in z
+    is_traj = path.suffix == ".npz" and "q_rad" in npz_keys(path)
     if is_traj:
         traj = Trajectory.load(path)
-        if traj.joint_names != robot.joint_names:
-            made_for = traj.robot or "unknown"
-            raise InputError(
-                f"{path}: trajectory is for joints {traj.joint_names}, robot {robot.name} has "
-                f"{robot.joint_names}; pass the --robot it was made for ({made_for})"
-            )
+        check_matches(traj, robot, str(path))  # joints, limits and rest pose must be the robot's
         from robogest.errors import SafetyError
         from robogest.safety import JointLimits
 

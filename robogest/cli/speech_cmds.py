@@ -5,7 +5,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from robogest.cli.common import add_json_flag, add_speech_args, print_json, speech_from_args
+from robogest.cli import checks
+from robogest.cli.common import (
+    add_gesture_args,
+    add_json_flag,
+    add_speech_args,
+    generator_options,
+    print_json,
+    speech_from_args,
+    speech_inputs,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -33,7 +42,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="rhythm",
         help="gesture generator: rhythm, gesticulator, rhythmic, s2ag, or an installed plugin's (default: %(default)s)",
     )
-    g.add_argument("--seed", type=int, default=0, help="random seed; same input + seed = same motion")
+    g.add_argument(
+        "--seed", type=checks.seed, default=0, help="random seed, 0..2**32-1; same input + seed = same motion"
+    )
+    add_gesture_args(g)
     g.add_argument("--plot", metavar="FILE.png", help="also plot wrist trajectories with beats and silent spans")
     g.set_defaults(func=run_generate)
 
@@ -45,6 +57,9 @@ def run_analyze(args: argparse.Namespace) -> int:
     if args.audio_file and args.audio:
         raise InputError("give the audio file once: either as AUDIO or as --audio")
     args.audio = args.audio or args.audio_file
+    checks.check_outputs({"--save-features": args.save_features}, speech_inputs(args))
+    if args.save_features and not Path(args.save_features).parent.is_dir():  # save_features creates no folders
+        raise InputError(f"--save-features {args.save_features}: the folder does not exist; create it first")
     speech = speech_from_args(args)
     summary = speech_summary(speech)
     if args.save_features:
@@ -63,8 +78,9 @@ def run_generate(args: argparse.Namespace) -> int:
     from robogest.generators import make_generator
     from robogest.motion import save_bvh
 
+    checks.check_outputs({"--out": args.out, "--plot": args.plot}, speech_inputs(args))
     speech = speech_from_args(args)
-    motion = make_generator(args.generator).generate(speech, seed=args.seed)
+    motion = make_generator(args.generator, **generator_options(args)).generate(speech, seed=args.seed)
     save_bvh(motion, Path(args.out))
     print(f"{motion.n_frames} frames at {motion.fps:g} fps ({motion.duration_s:.2f} s) written to {args.out}")
     if args.plot:

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 
+from robogest.cli import checks
 from robogest.errors import InputError
 
 
@@ -21,20 +23,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--model", default="gesticulator", help="model to train (default: %(default)s)")
     p.add_argument("--data", required=True, metavar="DIR", help="dataset folder")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder for checkpoints")
-    p.add_argument("--epochs", type=int, default=20, help="total epochs (default: %(default)s)")
-    p.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto", help="default: %(default)s")
-    p.add_argument("--batch-size", type=int, default=64, help="global batch size (default: %(default)s)")
     p.add_argument(
-        "--lr", type=float, help="Adam learning rate (default: the model's paper value: gesticulator 1e-4, rhythmic "
+        "--epochs", type=checks.positive_int(100_000), default=20, help="total epochs (default: %(default)s)"
+    )
+    p.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
+    p.add_argument("--seed", type=checks.seed, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto", help="default: %(default)s")
+    p.add_argument(
+        "--batch-size", type=checks.positive_int(1_000_000), default=64, help="global batch size (default: %(default)s)"
+    )
+    p.add_argument(
+        "--lr", type=checks.number(1e-12, 10.0),
+        help="Adam learning rate (default: the model's paper value: gesticulator 1e-4, rhythmic "
         "3e-4; s2ag always uses its own two rates, see --set lr_generator=...)",
     )  # fmt: skip
     p.add_argument(
-        "--val-fraction", type=float, default=0.1,
+        "--val-fraction", type=checks.number(0.0, 0.9), default=0.1,
         help="share of takes for validation (a folder with BEAT2's train_test_split.csv uses its split instead)",
     )  # fmt: skip
-    p.add_argument("--window-stride", type=int, default=5, help="frames between training windows")
+    p.add_argument(
+        "--window-stride", type=checks.positive_int(1_000_000), default=5, help="frames between training windows"
+    )
     p.add_argument("--text-encoder", default="minilm", help="text encoder name (default: %(default)s)")
     p.add_argument("--cache-dir", metavar="DIR", help="feature cache (default: ~/.cache/robogest/features)")
     p.add_argument(
@@ -64,6 +73,11 @@ def run(args: argparse.Namespace) -> int:
     from robogest.generators.learned import get_model_spec
     from robogest.learn.trainer import TrainConfig, train
 
+    if os.path.realpath(args.out) == os.path.realpath(args.data):
+        raise InputError(
+            f"--out {args.out} is the dataset folder --data {args.data}; keep checkpoints apart from the data"
+        )
+    checks.check_outputs({}, folders={"--out": args.out, "--cache-dir": args.cache_dir})
     kwargs = {"dim": 16} if args.text_encoder == "hash-test" else {}
     cfg = TrainConfig(
         model=args.model,

@@ -258,7 +258,7 @@ def load_take(
     path = cdir / f"{files.name}-{cache_key(files, config)}.npz"
     if path.is_file():
         try:
-            with np.load(path) as z:
+            with np.load(path, allow_pickle=False) as z:
                 return Take(files.name, z["acoustic"], z["text"], z["poses"], float(z["fps"]), files.audio)
         except (OSError, KeyError, ValueError):
             pass  # unreadable cache entry: recompute and overwrite

@@ -7,13 +7,15 @@ Metric functions are pure and take plain arrays (joint positions ``(T, J, 3)`` i
 from robogest.eval.beats import (
     BEAT_ALIGN_SIGMA_S,
     PMB_DELTA_S,
+    audio_onsets,
     beat_align,
     beat_sync_report,
     chance_corrected,
     motion_beats,
     pmb,
     pmb_curve,
-    wrist_speed_peaks,
+    stroke_peaks,
+    stroke_sync,
 )
 from robogest.eval.features import (
     diversity,
@@ -39,6 +41,7 @@ from robogest.eval.robot import joint_jerk, limit_violations, time_to_rest, trac
 __all__ = [
     "BEAT_ALIGN_SIGMA_S",
     "PMB_DELTA_S",
+    "audio_onsets",
     "beat_align",
     "beat_sync_report",
     "chance_corrected",
@@ -61,9 +64,10 @@ __all__ = [
     "silence_behaviour",
     "speed_histogram",
     "statistics_ratio",
+    "stroke_peaks",
+    "stroke_sync",
     "time_to_rest",
     "tracking_error",
     "window_features",
     "wrist_speed_comparison",
-    "wrist_speed_peaks",
 ]

@@ -22,8 +22,12 @@ from robogest.errors import InputError
 PMB_DELTA_S = 0.2
 #: BeatAlign Gaussian width, seconds; see :func:`beat_align`.
 BEAT_ALIGN_SIGMA_S = 0.3
-#: PMB threshold used with wrist-speed peaks (peaks are sharper than velocity minima).
-WRIST_PEAK_DELTA_S = 0.1
+#: Stroke sync: a wrist-speed peak is a hit when an audio onset lies within this many seconds.
+STROKE_SYNC_DELTA_S = 0.1
+#: Sample rate the stroke-sync onset detector runs at (its settings are librosa's defaults at this rate).
+ONSET_SR = 22050
+#: A wrist-speed peak must stand this far (m/s) above its surroundings to count as a stroke, not drift.
+STROKE_MIN_PROMINENCE_M_S = 0.05
 
 
 def _speed_curve(pos: np.ndarray, fps: float, joints: Sequence[int] | None, smooth_s: float) -> np.ndarray:
@@ -74,19 +78,6 @@ def motion_beats(
     """
     v = _speed_curve(pos, fps, joints, smooth_s)
     idx, _ = find_peaks(-v, prominence=max(_prominence(v, rel_prominence), 1e-9))
-    return idx / fps
-
-
-def wrist_speed_peaks(
-    pos: np.ndarray, fps: float, wrists: Sequence[int], smooth_s: float = 0.05, rel_prominence: float = 0.05
-) -> np.ndarray:
-    """Alternative motion beats: local maxima of the smoothed mean wrist speed, seconds ``(N_m,)``.
-
-    Beat gestures are quick strokes of the hand; their speed peak is sharper than the velocity minimum
-    around it, so they are scored with the tighter δ = :data:`WRIST_PEAK_DELTA_S`.
-    """
-    v = _speed_curve(pos, fps, wrists, smooth_s)
-    idx, _ = find_peaks(v, prominence=max(_prominence(v, rel_prominence), 1e-9))
     return idx / fps
 
 
@@ -210,6 +201,8 @@ def beat_sync_report(
     min_shift_s: float = 2.0,
     delta_s: float = PMB_DELTA_S,
     sigma_s: float = BEAT_ALIGN_SIGMA_S,
+    onsets_s: np.ndarray | None = None,
+    silent_spans: Sequence[tuple[float, float]] = (),
 ) -> dict:
     """Every beat score of a motion against audio beats, each with its chance correction.
 
@@ -219,14 +212,20 @@ def beat_sync_report(
         Joint positions, metres (or angles ``(T, J, 1)``, radians, for robot trajectories).
     fps : float
     audio_beats_s : ndarray [shape=(N_a,)], seconds
+        Onset beats only: pseudo-beats (inserted into long gaps) are no audio events and must not be
+        passed here.
     wrists : sequence of int, optional
-        Joints for the wrist-peak variant; skipped if None.
+        Wrist joints (positions in metres) for :func:`stroke_sync`; needs ``onsets_s`` too.
+    onsets_s : ndarray [shape=(K,)], seconds, optional
+        Onsets from :func:`audio_onsets` for the stroke sync.
+    silent_spans : sequence of (start_s, end_s)
+        Excluded from the stroke sync.
 
     Returns
     -------
     dict
-        ``pmb`` (kinematic beats, δ = ``delta_s``), ``beat_align`` (kinematic beats, σ = ``sigma_s``),
-        ``pmb_wrist_peaks`` (δ = 0.1 s, only with ``wrists``), each a :func:`chance_corrected` dict;
+        ``pmb`` (kinematic beats, δ = ``delta_s``), ``beat_align`` (kinematic beats, σ = ``sigma_s``), each a
+        :func:`chance_corrected` dict; ``stroke_sync`` (with ``wrists`` and ``onsets_s``);
         ``n_motion_beats``, ``n_audio_beats``, ``motion_beats_s``, ``pmb_curve``.
     """
     duration = pos.shape[0] / fps
@@ -242,9 +241,142 @@ def beat_sync_report(
         "beat_align": {"sigma_s": sigma_s}
         | chance_corrected(lambda m, a: beat_align(m, a, sigma_s), mb, ab, duration, n_shifts, min_shift_s),
     }
-    if wrists is not None:
-        wp = wrist_speed_peaks(pos, fps, wrists)
-        out["pmb_wrist_peaks"] = {"delta_s": WRIST_PEAK_DELTA_S, "n_motion_beats": int(wp.size)} | chance_corrected(
-            lambda m, a: pmb(m, a, WRIST_PEAK_DELTA_S), wp, ab, duration, n_shifts, min_shift_s
-        )
+    if wrists is not None and onsets_s is not None:
+        out["stroke_sync"] = stroke_sync(pos[:, list(wrists)], fps, onsets_s, silent_spans, n_shifts, min_shift_s)
     return out
+
+
+def audio_onsets(audio: np.ndarray, sr: int) -> np.ndarray:
+    """Audio onsets for :func:`stroke_sync`, from a detector no generator uses to place strokes.
+
+    ``librosa.onset.onset_detect`` with librosa's default settings on the audio resampled to
+    :data:`ONSET_SR` (22 050 Hz): spectral flux of a 128-band mel spectrogram (n_fft 2048, hop 512 =
+    23 ms, lag 1, no max filter) with librosa's default peak picking (pre/post max 30 ms, pre-avg 100 ms,
+    post-avg 100 ms, delta 0.07, wait 30 ms). The speech front-end's beats (40 mel bands at the feature
+    hop, gated by the activity threshold) and the default generator's acoustic beats (rises of the
+    loudness envelope) are different detectors, so the metric does not score a generator against the
+    very times it aimed at.
+
+    Parameters
+    ----------
+    audio : ndarray [shape=(N,)], float in [-1, 1]
+    sr : int
+        Sample rate, Hz.
+
+    Returns
+    -------
+    ndarray [shape=(K,)], seconds
+    """
+    import librosa
+
+    y = np.asarray(audio, dtype=np.float32).ravel()
+    if y.size == 0 or not np.any(y):
+        return np.zeros(0)
+    if sr != ONSET_SR:
+        y = librosa.resample(y, orig_sr=sr, target_sr=ONSET_SR)
+    return np.asarray(librosa.onset.onset_detect(y=y, sr=ONSET_SR, units="time"), dtype=np.float64)
+
+
+def stroke_peaks(wrist_pos: np.ndarray, fps: float, smooth_s: float = 0.05) -> np.ndarray:
+    """Speed peaks of each wrist (pooled, sorted), seconds ``(N,)``.
+
+    Each wrist is taken on its own (one hand often beats while the other holds); a peak must be at
+    least :data:`STROKE_MIN_PROMINENCE_M_S` prominent, so idle drift and mocap jitter are not strokes.
+
+    Parameters
+    ----------
+    wrist_pos : ndarray [shape=(T, W, 3)], metres
+    fps : float
+    smooth_s : float
+        Gaussian smoothing sigma of each speed curve, seconds.
+    """
+    pos = np.asarray(wrist_pos, dtype=np.float64)
+    if pos.ndim != 3 or pos.shape[0] < 3:
+        raise InputError(f"stroke sync needs (T >= 3, W, 3) wrist positions, got shape {pos.shape}")
+    speed = np.linalg.norm(np.gradient(pos, axis=0), axis=-1) * fps  # (T, W) m/s
+    out: list[np.ndarray] = []
+    for k in range(speed.shape[1]):
+        v = gaussian_filter1d(speed[:, k], smooth_s * fps, mode="nearest") if smooth_s > 0 else speed[:, k]
+        idx, _ = find_peaks(v, prominence=STROKE_MIN_PROMINENCE_M_S)
+        out.append(idx / fps)
+    return np.sort(np.concatenate(out)) if out else np.zeros(0)
+
+
+def _in_speech(t: np.ndarray, silent_spans: Sequence[tuple[float, float]]) -> np.ndarray:
+    ok = np.ones(t.shape, dtype=bool)
+    for a, b in silent_spans:
+        ok &= ~((t >= a) & (t < b))
+    return ok
+
+
+def stroke_hit_rate(
+    peaks_s: np.ndarray,
+    onsets_s: np.ndarray,
+    silent_spans: Sequence[tuple[float, float]] = (),
+    delta_s: float = STROKE_SYNC_DELTA_S,
+) -> float:
+    """Fraction of the peaks during speech with an onset within ``delta_s``; NaN when no peak is in speech."""
+    p = np.asarray(peaks_s, dtype=np.float64)
+    p = p[_in_speech(p, silent_spans)]
+    on = np.sort(np.asarray(onsets_s, dtype=np.float64).ravel())
+    if p.size == 0:
+        return float("nan")
+    if on.size == 0:
+        return 0.0
+    j = np.clip(np.searchsorted(on, p), 1, on.size) - 1
+    near = np.minimum(np.abs(p - on[j]), np.abs(p - on[np.minimum(j + 1, on.size - 1)]))
+    return float(np.mean(near <= delta_s))
+
+
+def stroke_sync(
+    wrist_pos: np.ndarray,
+    fps: float,
+    onsets_s: np.ndarray,
+    silent_spans: Sequence[tuple[float, float]] = (),
+    n_shifts: int = 100,
+    min_shift_s: float = 2.0,
+    delta_s: float = STROKE_SYNC_DELTA_S,
+) -> dict:
+    """Stroke sync: do the wrists' speed peaks during speech fall on audio onsets more than chance?
+
+    The hit rate (peaks during speech with an onset within ``delta_s``) is compared with the hit rates of
+    the same peaks circularly shifted in time by ``min_shift_s`` to ``duration - min_shift_s`` (the shift
+    keeps the motion's own rhythm and density and the speech mask stays put, so only alignment is lost).
+    Unlike scoring peaks against the beats a generator placed its strokes on, this is not circular:
+    ``onsets_s`` should come from :func:`audio_onsets`.
+
+    Parameters
+    ----------
+    wrist_pos : ndarray [shape=(T, W, 3)], metres
+        Wrist positions (human wrists or robot wrist sites).
+    fps : float
+    onsets_s : ndarray [shape=(K,)], seconds
+    silent_spans : sequence of (start_s, end_s)
+        Peaks in these spans are not counted.
+    n_shifts, min_shift_s : int, float
+        The null distribution's shifts.
+    delta_s : float
+        Hit window, seconds.
+
+    Returns
+    -------
+    dict
+        ``hit`` (fraction), ``chance`` (mean null hit rate), ``chance_std``, ``z`` = (hit - chance) /
+        chance_std (NaN if undefined), ``n_peaks`` (in speech), ``n_onsets``, ``delta_s``, ``n_shifts``.
+    """
+    peaks = stroke_peaks(wrist_pos, fps)
+    duration = np.asarray(wrist_pos).shape[0] / fps
+    spans = [(float(a), float(b)) for a, b in silent_spans]
+    res = chance_corrected(
+        lambda m, a: stroke_hit_rate(m, a, spans, delta_s), peaks, onsets_s, duration, n_shifts, min_shift_s
+    )
+    return {
+        "hit": res["score"],
+        "chance": res["null_mean"],
+        "chance_std": res["null_std"],
+        "z": res["z"],
+        "n_peaks": int(_in_speech(peaks, spans).sum()),
+        "n_onsets": int(np.asarray(onsets_s).size),
+        "delta_s": delta_s,
+        "n_shifts": res["n_shifts"],
+    }

@@ -7,6 +7,15 @@ from pathlib import Path
 
 import numpy as np
 
+from robogest.fileio import atomic_path
+
+
+def _save(fig, path: str | Path) -> Path:
+    """Write ``fig`` as PNG atomically (a full disk leaves no half-written plot)."""
+    with atomic_path(path, ".png") as tmp:
+        fig.savefig(tmp, dpi=100, format="png")
+    return Path(path)
+
 
 def _figure(w: float = 7.0, h: float = 4.0):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -31,8 +40,7 @@ def plot_wrist_histogram(wrist_speed: dict, path: str | Path, title: str = "") -
         title=f"{title} Hellinger {wrist_speed['hellinger']:.3f}".strip(),
     )
     ax.legend()
-    fig.savefig(path, dpi=100)
-    return Path(path)
+    return _save(fig, path)
 
 
 def plot_pmb_curves(curves: dict[str, dict], path: str | Path, title: str = "") -> Path:
@@ -43,8 +51,7 @@ def plot_pmb_curves(curves: dict[str, dict], path: str | Path, title: str = "") 
         ax.plot(c["delta_s"], c["pmb"], marker=".", label=label)
     ax.set(xlabel="δ (s)", ylabel="PMB (%)", ylim=(0, 100), title=title)
     ax.legend()
-    fig.savefig(path, dpi=100)
-    return Path(path)
+    return _save(fig, path)
 
 
 def plot_trajectory(traj, path: str | Path, title: str = "") -> Path:
@@ -69,5 +76,4 @@ def plot_trajectory(traj, path: str | Path, title: str = "") -> Path:
         )
     ax.set(xlabel="time (s)", ylabel="angle (rad)", title=title)
     ax.legend(fontsize="small", ncol=2)
-    fig.savefig(path, dpi=100)
-    return Path(path)
+    return _save(fig, path)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from robogest.errors import InputError
-from robogest.eval.beats import beat_sync_report
+from robogest.eval.beats import beat_sync_report, stroke_sync
 from robogest.eval.features import feature_distances
 from robogest.eval.kinematics import (
     maje_mad,
@@ -23,7 +23,7 @@ from robogest.eval.kinematics import (
     statistics_ratio,
     wrist_speed_comparison,
 )
-from robogest.eval.robot import joint_jerk, limit_violations, time_to_rest, tracking_error
+from robogest.eval.robot import joint_jerk, limit_violations, mask_runs, time_to_rest, tracking_error
 from robogest.fileio import atomic_path
 
 #: Joints pooled for wrist histograms, wrist peaks and silence behaviour.
@@ -44,6 +44,7 @@ def evaluate_motion(
     audio_beats_s: np.ndarray | None = None,
     silent_spans: Sequence[tuple[float, float]] | None = None,
     n_shifts: int = 100,
+    onsets_s: np.ndarray | None = None,
 ) -> dict:
     """All metrics of a generated human motion.
 
@@ -55,9 +56,12 @@ def evaluate_motion(
     joint_names : sequence of str, length J
     gt_pos : ndarray [shape=(T', J, 3)], metres, optional
     audio_beats_s : ndarray [shape=(B,)], seconds, optional
+        Onset beats (no pseudo-beats) for PMB and BeatAlign.
     silent_spans : sequence of (start_s, end_s), optional
     n_shifts : int
         Circular shifts for the chance-corrected beat scores.
+    onsets_s : ndarray [shape=(K,)], seconds, optional
+        :func:`robogest.eval.beats.audio_onsets` of the speech, for ``beat_sync.stroke_sync``.
 
     Returns
     -------
@@ -76,9 +80,11 @@ def evaluate_motion(
         out["maje_mad"] = maje_mad(pred_pos, gt_pos, fps)
         out["features"] = feature_distances(pred_pos, gt_pos, fps)
     if audio_beats_s is not None:
-        out["beat_sync"] = beat_sync_report(pred_pos, fps, audio_beats_s, wr, n_shifts)
+        spans = list(silent_spans or ())
+        kw = {"wrists": wr, "n_shifts": n_shifts, "onsets_s": onsets_s, "silent_spans": spans}
+        out["beat_sync"] = beat_sync_report(pred_pos, fps, audio_beats_s, **kw)
         if gt_pos is not None:
-            out["gt_beat_sync"] = beat_sync_report(gt_pos, fps, audio_beats_s, wr, n_shifts)
+            out["gt_beat_sync"] = beat_sync_report(gt_pos, fps, audio_beats_s, **kw)
     if silent_spans is not None and wr:
         out["silence"] = silence_behaviour(pred_pos, fps, list(silent_spans), wr)
     return out
@@ -91,6 +97,8 @@ def evaluate_trajectory(
     silent_spans: Sequence[tuple[float, float]] | None = None,
     achieved_q_rad: np.ndarray | None = None,
     n_shifts: int = 100,
+    onsets_s: np.ndarray | None = None,
+    wrist_pos_m: np.ndarray | None = None,
 ) -> dict:
     """All metrics of a robot command trajectory.
 
@@ -105,6 +113,10 @@ def evaluate_trajectory(
         Default: the trajectory's own ``silent`` mask.
     achieved_q_rad : ndarray [shape=(T', J)], radians, optional
         Simulated or measured angles for the sim tracking error.
+    onsets_s : ndarray [shape=(K,)], seconds, optional
+    wrist_pos_m : ndarray [shape=(T, W, 3)], metres, optional
+        The robot's wrist sites along the trajectory; with ``onsets_s`` and ``audio_beats_s`` gives
+        ``beat_sync.stroke_sync`` on the robot itself.
     """
     fps = traj.fps
     q = traj.q_rad
@@ -122,6 +134,11 @@ def evaluate_trajectory(
         out["tracking"] = tracking_error(q, achieved_q_rad, names)
     if audio_beats_s is not None and traj.n_frames >= 3:
         out["beat_sync"] = beat_sync_report(q[:, :, None], fps, audio_beats_s, None, n_shifts)
+        if wrist_pos_m is not None and onsets_s is not None:
+            spans = silent_spans
+            if spans is None:
+                spans = [(a / fps, b / fps) for a, b in mask_runs(traj.silent.astype(bool))]
+            out["beat_sync"]["stroke_sync"] = stroke_sync(wrist_pos_m, fps, onsets_s, spans, n_shifts)
     return out
 
 
@@ -131,6 +148,10 @@ def _fmt(x: float, nd: int = 2) -> str:
 
 def _sync(d: dict) -> str:
     return f"{_fmt(d['score'])} (chance {_fmt(d['null_mean'])}±{_fmt(d['null_std'])}, z={_fmt(d['z'], 1)})"
+
+
+def _stroke(d: dict) -> str:
+    return f"{_fmt(d['hit'])} (chance {_fmt(d['chance'])}±{_fmt(d['chance_std'])}, z={_fmt(d['z'], 1)})"
 
 
 def summary_rows(result: dict) -> list[tuple[str, str]]:
@@ -188,10 +209,12 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
         b = result["beat_sync"]
         rows.append((f"PMB δ={b['pmb']['delta_s']}s (%)", _sync(b["pmb"])))
         rows.append((f"BeatAlign σ={b['beat_align']['sigma_s']}s", _sync(b["beat_align"])))
-        if "pmb_wrist_peaks" in b:
-            rows.append(("PMB wrist peaks δ=0.1s (%)", _sync(b["pmb_wrist_peaks"])))
+        if "stroke_sync" in b:
+            rows.append(("stroke sync δ=0.1s (hit rate)", _stroke(b["stroke_sync"])))
     if "gt_beat_sync" in result:
         rows.append(("gt PMB δ=0.2s (%)", _sync(result["gt_beat_sync"]["pmb"])))
+        if "stroke_sync" in result["gt_beat_sync"]:
+            rows.append(("gt stroke sync (hit rate)", _stroke(result["gt_beat_sync"]["stroke_sync"])))
     return rows
 
 

@@ -92,7 +92,7 @@ def joint_jerk(q_rad: np.ndarray, fps: float, joint_names: Sequence[str] | None 
     }
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+def mask_runs(mask: np.ndarray) -> list[tuple[int, int]]:
     """``[start, stop)`` index ranges of the True runs of a boolean ``(T,)`` mask."""
     m = np.concatenate([[False], mask.astype(bool), [False]])
     d = np.diff(m.astype(np.int8))
@@ -133,7 +133,7 @@ def time_to_rest(
         mask = spans_to_mask(list(silent), n, fps)
     at_rest = np.abs(q - np.asarray(rest_q_rad, float)).max(axis=1) <= tol_rad
     per_span, reached = [], []
-    for a, b in _runs(mask):
+    for a, b in mask_runs(mask):
         hit = np.flatnonzero(at_rest[a:b])
         t = float(hit[0] / fps) if hit.size else None
         per_span.append({"start_s": a / fps, "duration_s": (b - a) / fps, "time_to_rest_s": t})

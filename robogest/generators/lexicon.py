@@ -1,19 +1,56 @@
-"""The default generator's gesture lexicon: units authored as key poses on :mod:`poses`.
+"""The default generator's gesture repertoire, as data: YAML files of units authored as key poses.
 
-Each unit is a *prep* pose (where the stroke starts) and a *stroke* pose (where it ends), both as
-offsets from :data:`poses.READY` at full amplitude; the generator scales them by the beat's prominence
-and times the stroke so its speed peak lands on the beat. Keywords pick semantic units when words are
-known; otherwise a statistical interpreter (Rhythmic Gesticulator §7.4.6) picks by frequency and
-transition.
+Each unit is a *prep* pose (where the stroke starts) and a *stroke* pose (where it ends), both as angle
+offsets from :data:`poses.READY` at full amplitude (angle names: :data:`poses.DOF_NAMES`, or
+``both_<arm angle>``); the generator scales them by the beat's prominence and times the stroke so its
+speed peak lands on an acoustic beat. Beat units are picked by a statistical interpreter (Rhythmic
+Gesticulator §7.4.6); semantic units by their trigger words, by priority within a sentence.
+
+Files are read from ``$ROBOGEST_GESTURES`` (os.pathsep-separated folders) and then the built-in
+``gestures/`` folder beside this module; a unit in an earlier folder replaces a built-in one of the same
+name, so a user adds or changes a gesture with a file and no code. Every mistake is reported with the file
+and the key, e.g. ``my.yaml: key units.wave.stroke.r_elbw: unknown pose angle ...``.
+
+File format::
+
+    units:
+      wave_hello:                 # unit name
+        channel: arms             # arms (default) or head
+        hand: right               # right | left | both | none
+        size: medium              # small | medium | large
+        kind: semantic            # beat (picked on ordinary beats) or semantic (picked by triggers/tags)
+        priority: 3               # semantic: higher wins within a sentence
+        frequency: 0.05           # beat: target share among beat units
+        triggers: [hello, hi]     # words or word pairs ("over there"); "?" = the last word of a question
+        prep: {r_elbow: 0.3}      # radians, offsets from READY
+        stroke: {r_elbow: -0.2, r_abd: 0.4}
+        stroke_s: 0.22            # stroke duration, s (its speed peak is on the beat)
+        hold_s: 0.15              # post-stroke hold, s
+        shake_hz: 0               # head units: > 0 makes a yaw oscillation
+        meaning: the right hand waves hello    # used by the optional sentence-embedding choice
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
+import yaml
 
-from robogest.generators.poses import pose
+from robogest.errors import ConfigError
+from robogest.generators.poses import DOF_NAMES, pose
+
+#: Built-in units.
+BUILTIN_DIR = Path(__file__).resolve().parent / "gestures"
+#: Relative amplitude of each size: prominent beats prefer large units.
+SIZE_LEVEL = {"small": 0.3, "medium": 0.6, "large": 1.0}
+_KEYS = {
+    "channel", "hand", "size", "kind", "priority", "frequency", "triggers", "prep", "stroke", "stroke_s", "hold_s",
+    "shake_hz", "meaning",
+}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -28,13 +65,25 @@ class GestureUnit:
     stroke : ndarray [shape=(D,)], radians
         Offset from READY at the end of the stroke.
     stroke_s : float
-        Stroke duration; the speed peak is at its middle, on the beat.
+        Stroke duration, seconds; the speed peak is at its middle, on the beat.
     hold_s : float
-        Post-stroke hold before the next movement may start.
+        Post-stroke hold before the next movement may start, seconds.
     channel : str
         ``"arms"`` (arms + spine lean) or ``"head"`` (head only, overlays the arms).
     shake_hz : float
         Head units only: > 0 makes a yaw oscillation instead of a single key pose.
+    hand, size, kind : str
+        ``right|left|both|none``, ``small|medium|large``, ``beat|semantic``.
+    priority : int
+        Semantic units: higher wins within a sentence.
+    frequency : float
+        Beat units: target share among the beat units the interpreter picks.
+    triggers : tuple of str
+        Lower-case words or two-word phrases; ``"?"`` marks the last word of a question.
+    meaning : str
+        A short description (for people, and for sentence-embedding choice).
+    source : str
+        The file the unit came from.
     """
 
     name: str
@@ -44,128 +93,179 @@ class GestureUnit:
     hold_s: float = 0.15
     channel: str = "arms"
     shake_hz: float = 0.0
+    hand: str = "both"
+    size: str = "medium"
+    kind: str = "beat"
+    priority: int = 1
+    frequency: float = 0.0
+    triggers: tuple[str, ...] = ()
+    meaning: str = ""
+    source: str = ""
 
 
-def _unit(name: str, prep: dict[str, float], stroke: dict[str, float], **kw: float | str) -> GestureUnit:
-    return GestureUnit(name, pose(**prep), pose(**stroke), **kw)  # type: ignore[arg-type]
+def _choice(where: str, v: object, options: tuple[str, ...]) -> str:
+    if v not in options:
+        raise ConfigError(f"{where}: {v!r} is not one of {', '.join(options)}")
+    return str(v)
 
 
-UNITS: dict[str, GestureUnit] = {
-    u.name: u
-    for u in (
-        # Beats: a raise of the forearm (prep) then a quick downward stroke.
-        _unit("beat_small_r", {"r_elbow": 0.30, "r_flex": 0.05}, {"r_elbow": -0.12}, stroke_s=0.18),
-        _unit("beat_small_l", {"l_elbow": 0.30, "l_flex": 0.05}, {"l_elbow": -0.12}, stroke_s=0.18),
-        _unit(
-            "beat_medium_both",
-            {"both_elbow": 0.45, "both_flex": 0.12, "both_twist": -0.1},
-            {"both_elbow": -0.18, "both_flex": -0.05},
-        ),
-        _unit(
-            "beat_large_both",
-            {"both_elbow": 0.70, "both_flex": 0.30, "both_abd": 0.10, "both_twist": -0.2, "spine_pitch": -0.04},
-            {"both_elbow": -0.22, "both_flex": -0.05, "spine_pitch": 0.05},
-            stroke_s=0.26,
-        ),
-        _unit(
-            "beat_large_r",
-            {"r_elbow": 0.70, "r_flex": 0.35, "r_twist": -0.15, "spine_yaw": -0.05},
-            {"r_elbow": -0.22, "r_flex": -0.05, "spine_yaw": 0.03},
-            stroke_s=0.24,
-        ),
-        # Semantic units.
-        _unit(
-            "palms_up_open",
-            {"both_elbow": 0.25, "both_twist": 0.05},
-            {"both_twist": -0.75, "both_abd": 0.25, "both_elbow": -0.15, "both_wrist": -0.25, "head_roll": 0.06},
-            stroke_s=0.3,
-            hold_s=0.3,
-        ),
-        _unit(
-            "spread_both",
-            {"both_elbow": 0.30, "both_twist": 0.25},
-            {"both_abd": 0.55, "both_twist": -0.95, "both_elbow": -0.35, "both_flex": 0.15, "spine_pitch": -0.03},
-            stroke_s=0.32,
-            hold_s=0.35,
-        ),
-        _unit(
-            "self_point",
-            {"r_elbow": 0.25, "r_twist": 0.4},
-            {"r_twist": 0.95, "r_elbow": 0.55, "r_flex": 0.05, "r_abd": 0.1, "head_pitch": 0.05},
-            stroke_s=0.26,
-            hold_s=0.3,
-        ),
-        _unit(
-            "point_forward",
-            {"r_elbow": 0.35, "r_flex": 0.25},
-            {"r_flex": 0.75, "r_elbow": -0.75, "r_twist": 0.15, "head_pitch": -0.04, "spine_pitch": 0.04},
-            stroke_s=0.26,
-            hold_s=0.35,
-        ),
-        _unit(
-            "shrug",
-            {"both_elbow": 0.1},
-            {"both_shrug": 0.22, "both_twist": -0.7, "both_elbow": -0.05, "both_wrist": -0.3, "head_roll": 0.14},
-            stroke_s=0.3,
-            hold_s=0.35,
-        ),
-        # Head units, overlaid on whatever the arms do.
-        _unit("nod", {"head_pitch": -0.05}, {"head_pitch": 0.22}, channel="head", stroke_s=0.2, hold_s=0.1),
-        _unit("shake", {}, {"head_yaw": 0.28}, channel="head", stroke_s=0.9, hold_s=0.1, shake_hz=2.2),
-        _unit("head_beat", {"head_pitch": -0.04}, {"head_pitch": 0.09}, channel="head", stroke_s=0.18, hold_s=0.05),
-    )
-}
-
-#: Lower-case word -> unit. Two-word keys ("don't know") are matched on consecutive words.
-KEYWORDS: dict[str, str] = {
-    **dict.fromkeys(["big", "all", "many", "everything", "everyone", "huge", "whole", "world", "lots"], "spread_both"),
-    **dict.fromkeys(["i", "me", "my", "myself", "mine", "i'm", "i've", "i'll"], "self_point"),
-    **dict.fromkeys(["you", "your", "yours", "you're", "yourself"], "point_forward"),
-    **dict.fromkeys(["maybe", "perhaps", "guess", "probably", "don't know", "not sure"], "shrug"),
-    **dict.fromkeys(["yes", "yeah", "right", "sure", "okay", "ok", "agree", "exactly"], "nod"),
-    **dict.fromkeys(["no", "not", "never", "nothing", "nobody", "don't", "can't", "won't", "isn't"], "shake"),
-    **dict.fromkeys(["so", "well", "what", "why", "how", "think", "actually", "question"], "palms_up_open"),
-}
-
-#: Arm lexemes the statistical interpreter draws from, their target frequency f^I and transitions L.
-ARM_LEXEMES = ("beat_small_r", "beat_small_l", "beat_medium_both", "beat_large_both", "beat_large_r", "palms_up_open")
-LEXEME_FREQ = np.array([0.28, 0.16, 0.26, 0.10, 0.12, 0.08])
-# Rows: previous lexeme; speakers tend to repeat a hand shape in a run of beats.
-TRANSITIONS = np.array(
-    [
-        [0.40, 0.10, 0.25, 0.08, 0.12, 0.05],
-        [0.15, 0.35, 0.25, 0.08, 0.10, 0.07],
-        [0.20, 0.10, 0.40, 0.15, 0.08, 0.07],
-        [0.15, 0.10, 0.35, 0.25, 0.08, 0.07],
-        [0.30, 0.05, 0.20, 0.10, 0.30, 0.05],
-        [0.25, 0.15, 0.30, 0.10, 0.10, 0.10],
-    ]
-)
-#: Relative amplitude of each lexeme: prominent beats prefer large ones.
-LEXEME_SIZE = np.array([0.3, 0.3, 0.6, 1.0, 0.9, 0.6])
+def _number(where: str, v: object, lo: float, hi: float) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not lo <= float(v) <= hi:
+        raise ConfigError(f"{where}: {v!r} must be a number in [{lo:g}, {hi:g}]")
+    return float(v)
 
 
-def next_lexeme(prev: int | None, counts: np.ndarray, prominence: float, rng: np.random.Generator) -> int:
-    """Statistical interpreter, Rhythmic Gesticulator eq. 24, plus a prominence bias.
+def _pose(where: str, v: object) -> np.ndarray:
+    if v is None:
+        v = {}
+    if not isinstance(v, dict):
+        raise ConfigError(f"{where}: must be a mapping of pose angle -> radians, e.g. {{r_elbow: 0.3}}")
+    for k, a in v.items():
+        _number(f"{where}.{k}", a, -3.2, 3.2)
+    try:
+        return pose(**{str(k): float(a) for k, a in v.items()})
+    except KeyError as e:
+        bad = str(e.args[0]).split("'")[1] if "'" in str(e.args[0]) else str(e.args[0])
+        raise ConfigError(
+            f"{where}.{bad}: unknown pose angle; use one of {', '.join(DOF_NAMES)} or both_<arm angle>"
+        ) from None
 
-    ``p ∝ softmax(f^I - f_t) ⊙ L[prev] ⊙ size_bias``: lexemes used less than their target frequency
-    so far become more likely, transitions follow ``L``, and louder beats prefer larger units.
 
-    Parameters
-    ----------
-    prev : int or None
-        Index of the previous arm lexeme in :data:`ARM_LEXEMES`.
-    counts : ndarray [shape=(N,)]
-        How often each lexeme has been used so far.
-    prominence : float
-        Beat prominence in [0, 1].
-    """
-    f_t = counts / counts.sum() if counts.sum() > 0 else np.zeros_like(LEXEME_FREQ)
-    z = 8.0 * (LEXEME_FREQ - f_t)
-    soft = np.exp(z - z.max())
-    soft /= soft.sum()
-    row = TRANSITIONS[prev] if prev is not None else LEXEME_FREQ
-    bias = np.exp(-((LEXEME_SIZE - prominence) ** 2) / (2 * 0.3**2))
-    p = soft * row * bias
-    p /= p.sum()
-    return int(rng.choice(len(ARM_LEXEMES), p=p))
+def parse_unit(name: str, d: object, path: str) -> GestureUnit:
+    """One unit from its YAML mapping; ConfigError naming ``path`` and the key on any mistake."""
+    where = f"{path}: key units.{name}"
+    if not isinstance(d, dict):
+        raise ConfigError(f"{where}: must be a mapping with at least prep and stroke")
+    unknown = sorted(set(map(str, d)) - _KEYS)
+    if unknown:
+        raise ConfigError(f"{where}.{unknown[0]}: unknown key; use {', '.join(sorted(_KEYS))}")
+    if "stroke" not in d:
+        raise ConfigError(f"{where}.stroke: missing; give the stroke's end pose, e.g. {{r_elbow: -0.2}}")
+    channel = _choice(f"{where}.channel", d.get("channel", "arms"), ("arms", "head"))
+    triggers = d.get("triggers", [])
+    if not isinstance(triggers, list) or not all(isinstance(t, str) and t.strip() for t in triggers):
+        raise ConfigError(
+            f"{where}.triggers: must be a list of words, e.g. [hello, hi] (quote words YAML reads as true/false: "
+            '"no", "yes", "on", "off")'
+        )
+    u = GestureUnit(
+        name=str(name),
+        prep=_pose(f"{where}.prep", d.get("prep", {})),
+        stroke=_pose(f"{where}.stroke", d["stroke"]),
+        stroke_s=_number(f"{where}.stroke_s", d.get("stroke_s", 0.22), 0.05, 2.0),
+        hold_s=_number(f"{where}.hold_s", d.get("hold_s", 0.15), 0.0, 3.0),
+        channel=channel,
+        shake_hz=_number(f"{where}.shake_hz", d.get("shake_hz", 0.0), 0.0, 6.0),
+        hand=_choice(f"{where}.hand", d.get("hand", "none" if channel == "head" else "both"),
+                     ("right", "left", "both", "none")),
+        size=_choice(f"{where}.size", d.get("size", "medium"), tuple(SIZE_LEVEL)),
+        kind=_choice(f"{where}.kind", d.get("kind", "semantic" if triggers else "beat"), ("beat", "semantic")),
+        priority=int(_number(f"{where}.priority", d.get("priority", 1), 0, 100)),
+        frequency=_number(f"{where}.frequency", d.get("frequency", 0.0), 0.0, 1.0),
+        triggers=tuple(t.strip().lower() for t in triggers),
+        meaning=str(d.get("meaning", "")),
+        source=path,
+    )  # fmt: skip
+    if u.channel == "head" and np.any(np.delete(np.stack([u.prep, u.stroke]), _HEAD_IDX, axis=1)):
+        raise ConfigError(f"{where}.stroke: a head unit may only move head_pitch, head_yaw, head_roll")
+    return u
+
+
+_HEAD_IDX = [DOF_NAMES.index(n) for n in ("head_pitch", "head_yaw", "head_roll")]
+
+
+def load_file(path: Path) -> dict[str, GestureUnit]:
+    """Units of one YAML file."""
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot read ({e})") from None
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise ConfigError(f"{path}: not valid YAML{where} ({str(e).splitlines()[0]})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("units"), dict):
+        raise ConfigError(f"{path}: key units: missing; a gesture file is a mapping 'units: {{name: {{...}}}}'")
+    return {str(n): parse_unit(str(n), d, str(path)) for n, d in data["units"].items()}
+
+
+def search_path() -> list[Path]:
+    """``$ROBOGEST_GESTURES`` folders (or files) first, then the built-in folder."""
+    extra = [Path(p) for p in os.environ.get("ROBOGEST_GESTURES", "").split(os.pathsep) if p]
+    return [*extra, BUILTIN_DIR]
+
+
+@lru_cache(maxsize=8)
+def _load(paths: tuple[Path, ...]) -> dict[str, GestureUnit]:
+    found: dict[str, GestureUnit] = {}
+    for d in reversed(paths):  # later (built-in) first, so earlier folders replace units by name
+        if d.is_file():
+            files = [d]
+        elif d.is_dir():
+            files = sorted([*d.glob("*.yaml"), *d.glob("*.yml")])
+        else:
+            raise ConfigError(f"{d}: gesture folder not found (from ROBOGEST_GESTURES); fix or unset it")
+        for f in files:
+            found.update(load_file(f))
+    return found
+
+
+def load_units(paths: list[Path] | None = None) -> dict[str, GestureUnit]:
+    """All units on the search path (or ``paths``), by name."""
+    return dict(_load(tuple(search_path() if paths is None else paths)))
+
+
+@dataclass(frozen=True)
+class Repertoire:
+    """The units a generator uses, with the lookups it needs."""
+
+    units: dict[str, GestureUnit]
+
+    @property
+    def beat_units(self) -> tuple[str, ...]:
+        """Arm units the statistical interpreter draws from (``kind: beat``, ``frequency`` > 0)."""
+        return tuple(n for n, u in self.units.items() if u.channel == "arms" and u.kind == "beat" and u.frequency > 0)
+
+    def keywords(self) -> dict[str, list[str]]:
+        """Trigger word or phrase -> units, highest priority first."""
+        out: dict[str, list[str]] = {}
+        for n, u in self.units.items():
+            for t in u.triggers:
+                out.setdefault(t, []).append(n)
+        for t in out:
+            out[t].sort(key=lambda n: -self.units[n].priority)
+        return out
+
+    def next_beat_unit(
+        self, counts: np.ndarray, prominence: float, rng: np.random.Generator, avoid: frozenset[str] = frozenset()
+    ) -> int:
+        """Statistical interpreter, Rhythmic Gesticulator eq. 24, plus a size bias and no repeats.
+
+        ``p ∝ softmax(f^I - f_t) ⊙ size_bias``: units used less than their target frequency so far become
+        more likely and louder beats prefer larger units; units in ``avoid`` (used within the last 10 s
+        just before) are left out unless nothing else remains.
+
+        Parameters
+        ----------
+        counts : ndarray [shape=(N,)]
+            How often each of :attr:`beat_units` has been used so far.
+        prominence : float
+            Beat prominence in [0, 1].
+        """
+        names = self.beat_units
+        freq = np.array([self.units[n].frequency for n in names])
+        freq = freq / freq.sum()
+        f_t = counts / counts.sum() if counts.sum() > 0 else np.zeros_like(freq)
+        z = 8.0 * (freq - f_t)
+        soft = np.exp(z - z.max())
+        size = np.array([SIZE_LEVEL[self.units[n].size] for n in names])
+        p = soft * freq * np.exp(-((size - prominence) ** 2) / (2 * 0.3**2))
+        mask = np.array([n not in avoid for n in names])
+        if mask.any():
+            p = p * mask
+        p /= p.sum()
+        return int(rng.choice(len(names), p=p))
+
+
+def default_repertoire() -> Repertoire:
+    return Repertoire(load_units())

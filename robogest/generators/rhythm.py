@@ -1,12 +1,16 @@
 """The default generator: rhythm-aware, rule-based, no trained weights.
 
-Strokes land on speech beats (their wrist-speed peak at the beat time), preparation starts early
-(gesture onsets precede speech by ~0.2–0.35 s, Gesticulator §2.1.2), keywords pick semantic units,
-a statistical interpreter (Rhythmic Gesticulator §7.4.6) picks the rest, and every long silent period
-is spent exactly at the rest pose (the silent-period hint, Rhythmic Gesticulator §6.4.1).
+Strokes land on acoustic beats (:mod:`acoustic`: the generator's own detector of loudness rises, never
+pseudo-beats): each stroke's wrist-speed peak is at its beat. Preparations are slower and peak on an
+earlier beat, so every move made while speaking peaks on a beat; where speech goes on without a chosen
+beat the pose is held. Inline tags and trigger words (by priority within a sentence) pick semantic units
+from the data-driven repertoire (:mod:`lexicon`), a statistical interpreter (Rhythmic Gesticulator §7.4.6)
+picks beat units, and every long silent period is spent exactly at the rest pose (the silent-period hint,
+Rhythmic Gesticulator §6.4.1).
 
 The motion is built as keyframe timelines in the angle space of :mod:`poses` and interpolated with
-minimum-jerk (quintic) segments, whose speed peak is the segment's midpoint.
+minimum-jerk (quintic) segments; a segment is placed by where its wrist speed really peaks (the wrists move
+on curves, so not always at the segment's middle).
 """
 
 from __future__ import annotations
@@ -16,9 +20,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from robogest.errors import InputError
 from robogest.generators import lexicon as lx
+from robogest.generators.acoustic import AcousticBeats, acoustic_beats
 from robogest.generators.base import Generator, register_generator
 from robogest.generators.poses import DOF, HEAD_DOFS, N_DOF, READY, REST, dofs_to_rotations
+from robogest.generators.tags import align_words, parse_tags, sentences
 from robogest.motion.human_motion import HumanMotion
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
 from robogest.speech.types import Speech
@@ -28,20 +35,21 @@ from robogest.speech.types import Speech
 class RhythmConfig:
     """Timing and style of the default generator (seconds, radians).
 
-    The defaults were calibrated against the BEAT2 sample (speaker "scott", 64 s, speech frames only):
-    wrist speed p90/p99 106/184 cm/s vs the speaker's 121/213, wrist acceleration p90/p99 844/1465 cm/s²
-    vs 830/1517. The median speed stays lower (14 vs 49 cm/s): between gestures the robot holds still.
+    The defaults were calibrated on the first half (0-32 s) of the BEAT2 sample (speaker "scott") only;
+    ``benchmarks/bench_generalize.py`` reports them on held-out speech (README, Evaluation): about 0.7x
+    the speaker's mean wrist speed and acceleration during speech on the calibration half.
 
     Attributes
     ----------
     fps : float or None
         Output frame rate; None uses the speech's feature rate.
     prep_s : float
-        Longest preparation: the arms flow into the next stroke's start pose over at most this long (at
-        least ``min_prep_s``, and long enough to stay under ``max_wrist_speed_m_s``); gaps longer than
-        this hold the pose, gaps longer than ``ready_after_s`` relax to READY first.
+        A preparation is centred on an acoustic beat at most this long before its stroke starts (it lasts
+        at least ``min_prep_s`` and is slow enough for ``prep_speed_ratio``); without such a beat the
+        stroke starts straight from the held pose. Gaps longer than ``ready_after_s + 2 prep_s`` relax to
+        READY, on a free beat.
     min_prep_s : float
-        A stroke with less preparation time than this is skipped.
+        Shortest preparation.
     gesture_rate : float
         Probability scale of gesturing on an ordinary beat (keywords always gesture): the chance is
         ``min(1, gesture_rate * (0.35 + 0.65 * prominence))``, so 3 gestures on every beat that fits.
@@ -67,13 +75,36 @@ class RhythmConfig:
     prep_speed_ratio : float
         Preparations peak at most at this fraction of ``max_wrist_speed_m_s``, so the stroke stays the
         fastest phase (and leaving rest after a pause is unhurried).
+    hold_scale : float
+        Multiplies every unit's post-stroke hold.
+    amount : float
+        Designer control in [0, 2]: scales how often beats get a gesture (x amount) and gesture size
+        (x (0.5 + 0.5 amount)); 0 gestures not at all. ``--style calm|neutral|lively`` = 0.5 / 1 / 1.5.
+    gestures : str
+        ``"auto"``, or ``"none"`` for idle breathing and the rest behaviour only.
+    drift_m_s, drift_hz : float
+        Drift of each wrist while speaking, between and under the gestures: a small circle at this speed
+        (m/s, times ``amount``; none with ``gestures="none"``) and frequency (radius about 10 cm). On the
+        calibration half, 0.3 m/s brought wrist speed from 0.42x to 0.7x the speaker's and the Hellinger
+        distance from 0.64 to about 0.43, at a cost in stroke-sync z (3.7 -> about 3.1, 10 seeds): the
+        drift shifts the strokes' speed peaks a little. 0.3 Hz kept more z (3.3) with 16 cm circles, 0.8 Hz
+        less (2.8).
+    semantic : str
+        ``"keywords"`` (trigger words only) or ``"embedding"``: sentences whose words trigger no arm unit
+        get the unit whose ``meaning`` is closest in MiniLM sentence embedding (needs the learn extra).
+    max_joint_speed_rad_s, max_joint_accel_rad_s2 : float or None
+        Speed and acceleration limits of the body that will play the motion (e.g. a robot's slowest arm
+        joint), applied to every move's largest angle change, so strokes are timed for what the robot can do
+        instead of being smeared by its safety layer. Not set by the pipeline: on the BEAT2 calibration half
+        the humanoid's 15 rad/s² brought its z closer to the human motion's (0.89 vs 0.84 of it) but lower
+        (2.4 vs 2.9), as fewer gestures fit.
     """
 
     fps: float | None = None
-    prep_s: float = 0.8
+    prep_s: float = 1.2
     min_prep_s: float = 0.2
     gesture_rate: float = 2.5
-    amplitude: float = 1.5
+    amplitude: float = 2.0
     retract_s: float = 0.5
     rest_lead_s: float = 0.35
     min_rest_span_s: float = 0.95
@@ -81,8 +112,22 @@ class RhythmConfig:
     sway_rad: float = 0.05
     head_beat_prob: float = 0.35
     max_wrist_speed_m_s: float = 2.4
-    stroke_scale: float = 1.8
+    stroke_scale: float = 1.0
     prep_speed_ratio: float = 0.7
+    hold_scale: float = 0.0
+    amount: float = 1.0
+    gestures: str = "auto"
+    max_joint_speed_rad_s: float | None = None
+    max_joint_accel_rad_s2: float | None = None
+    semantic: str = "keywords"
+    drift_m_s: float = 0.3
+    drift_hz: float = 0.5
+
+
+#: The same unit is not used twice in a row within this many seconds.
+NO_REPEAT_S = 10.0
+#: Semantic units on one channel keep at least this far apart (seconds).
+SEMANTIC_SPACING_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -92,7 +137,7 @@ class GestureEvent:
     t_s: float
     unit: str
     amplitude: float
-    source: str  # "keyword:<word>" or "beat"
+    source: str  # "tag:<word>", "keyword:<trigger>", "meaning:<similarity>" or "beat"
 
 
 @dataclass
@@ -133,39 +178,27 @@ def _words_lower(speech: Speech) -> list[str]:
     return [re.sub(r"[^a-z']", "", w.text.lower()) for w in speech.words]
 
 
-def _prominence(speech: Speech, t_s: np.ndarray) -> np.ndarray:
-    """Loudness + pitch prominence at times ``t_s (B,)``, in [0, 1]."""
-    f = speech.features
-    if f.n_frames == 0 or len(t_s) == 0:
-        return np.zeros(len(t_s))
-    db = 20 * np.log10(np.maximum(f.rms, 1e-6))  # (T,)
-    speaking = ~f.silence
-    ref = db[speaking] if speaking.any() else db
-    lo, hi = np.percentile(ref, 10), np.percentile(ref, 95)
-    k = np.clip(np.round(t_s * f.fps).astype(int), 0, f.n_frames - 1)
-    # Loudness over a short window around the beat (the onset frame itself is often still rising).
-    win = np.stack([db[np.clip(k + d, 0, f.n_frames - 1)] for d in (-1, 0, 1, 2)]).max(axis=0)
-    energy = np.clip((win - lo) / max(hi - lo, 1e-6), 0, 1)
-    voiced = f.pitch_hz > 0
-    if voiced.sum() >= 3:
-        lp = np.log(f.pitch_hz[voiced])
-        z = (np.log(np.maximum(f.pitch_hz[k], 1.0)) - lp.mean()) / max(lp.std(), 1e-3)
-        pitch = np.where(f.pitch_hz[k] > 0, np.clip(0.5 + 0.25 * z, 0, 1), 0.3)
-    else:
-        pitch = np.full(len(t_s), 0.3)
-    return 0.7 * energy + 0.3 * pitch
-
-
 @register_generator("rhythm")
 class RhythmGenerator(Generator):
     """Rule-based, beat-synchronous gestures from a hand-authored lexicon; works on a fresh install."""
 
     name = "rhythm"
 
-    def __init__(self, config: RhythmConfig | None = None, **overrides: float) -> None:
+    def __init__(
+        self, config: RhythmConfig | None = None, repertoire: lx.Repertoire | None = None, **overrides: float | str
+    ) -> None:
         base = config or RhythmConfig()
         self.config = RhythmConfig(**{**base.__dict__, **overrides}) if overrides else base
-        self._fk_cache: dict[bytes, float] = {}
+        c = self.config
+        if not 0.0 <= c.amount <= 2.0:
+            raise InputError(f"gesture amount must be within [0, 2], got {c.amount}")
+        if c.gestures not in ("auto", "none"):
+            raise InputError(f"gestures must be 'auto' or 'none', got {c.gestures!r}")
+        if c.semantic not in ("keywords", "embedding"):
+            raise InputError(f"semantic must be 'keywords' or 'embedding', got {c.semantic!r}")
+        self._meaning = None
+        self.repertoire = repertoire or lx.default_repertoire()
+        self._fk_cache: dict[bytes, tuple[float, float]] = {}
 
     # --- planning -------------------------------------------------------------------------
     def rest_windows(self, speech: Speech) -> list[tuple[float, float]]:
@@ -181,81 +214,237 @@ class RhythmGenerator(Generator):
                 out.append((t0, t1))
         return out
 
-    def plan(self, speech: Speech, seed: int = 0) -> list[GestureEvent]:
-        """Choose arm and head events (time, unit, amplitude); deterministic for a seed."""
+    def beats(self, speech: Speech) -> AcousticBeats:
+        """Where strokes may land: :func:`acoustic.acoustic_beats` of the speech, outside silent periods."""
+        return acoustic_beats(speech.audio, speech.sr, tuple(speech.silent_spans))
+
+    def plan(self, speech: Speech, seed: int = 0, acoustic: AcousticBeats | None = None) -> list[GestureEvent]:
+        """Choose arm and head events (time, unit, amplitude) on acoustic beats; deterministic for a seed.
+
+        Order of precedence: inline tags (``^gesture(name)`` in :attr:`Speech.text`), then semantic units
+        by priority within each sentence (trigger words; ``"?"`` = the last word of a question), then beat
+        units from the statistical interpreter on the remaining beats. A unit is not repeated back to back
+        within :data:`NO_REPEAT_S`. Beat decisions are drawn beat by beat in time order, so a prefix of
+        the beats (a partial utterance, as when streaming) gets the choices it gets in the whole one.
+        ``acoustic`` passes :meth:`beats` already computed (each call otherwise detects them again).
+        """
         c = self.config
+        if c.gestures == "none" or c.amount <= 0:
+            return []
+        rep = self.repertoire
         rng = np.random.default_rng(seed)
-        silent = list(speech.silent_spans)
-
-        def in_silence(t: float, pad: float = 0.05) -> bool:
-            return any(a + pad < t < b - pad for a, b in silent)
-
-        beats = np.array([b for b in speech.beats_s if not in_silence(float(b))])
-        prom = _prominence(speech, beats)
+        ab = acoustic if acoustic is not None else self.beats(speech)
+        beats, prom = ab.t_s, ab.prominence
+        amp = c.amplitude * (0.5 + 0.5 * c.amount)
+        words = speech.words
         events: list[GestureEvent] = []
-        taken: set[int] = set()
-        # Keyword units first: they take the beat nearest the word's start.
-        words = _words_lower(speech)
-        for i, w in enumerate(speech.words):
-            key = words[i]
-            pair = f"{key} {words[i + 1]}" if i + 1 < len(words) else ""
-            unit = lx.KEYWORDS.get(pair) or lx.KEYWORDS.get(key)
-            if unit is None:
+        taken: set[tuple[int, str]] = set()  # (beat, channel): arms and head may share a beat
+
+        def beat_in(k: int, unit: str) -> int | None:
+            w, ch = words[k], rep.units[unit].channel
+            near = np.where((beats >= w.start_s - 0.1) & (beats <= w.end_s))[0]
+            near = [int(i) for i in near if (int(i), ch) not in taken]
+            return near[0] if near else None
+
+        def clashes(t: float, unit: str) -> bool:
+            ch = rep.units[unit].channel
+            for e in events:
+                if rep.units[e.unit].channel != ch:
+                    continue
+                if abs(e.t_s - t) < SEMANTIC_SPACING_S or (e.unit == unit and abs(e.t_s - t) < NO_REPEAT_S):
+                    return True
+            return False
+
+        spoken = [w.text for w in words]
+        index = align_words(speech.text, spoken) if speech.text else []
+        # 1. Tags pin a unit to the next word.
+        for tag in parse_tags(speech.text) if speech.text else []:
+            if tag.name not in rep.units:
+                known = ", ".join(sorted(rep.units))
+                raise InputError(f"gesture tag ^gesture({tag.name}): unknown unit; known units: {known}")
+            k = index[tag.word_index] if tag.word_index < len(index) else None
+            if k is None:
                 continue
-            near = np.where((beats >= w.start_s - 0.1) & (beats <= w.end_s))[0] if len(beats) else np.array([], int)
-            if len(near):
-                bi = int(near[0])
-                t, p = float(beats[bi]), float(prom[bi])
-                taken.add(bi)
-            else:
-                t = w.start_s + min(0.15, 0.5 * (w.end_s - w.start_s))
-                p = float(_prominence(speech, np.array([t]))[0])
-            events.append(GestureEvent(t, unit, c.amplitude * (0.6 + 0.4 * p), f"keyword:{key}"))
-        # Ordinary beats: the statistical interpreter picks arm units; some beats get head beats.
-        counts = np.zeros(len(lx.ARM_LEXEMES))
-        prev: int | None = None
+            bi = beat_in(k, tag.name)
+            t = float(beats[bi]) if bi is not None else words[k].start_s
+            p = float(prom[bi]) if bi is not None else 0.6
+            if bi is not None:
+                taken.add((bi, rep.units[tag.name].channel))
+            events.append(GestureEvent(t, tag.name, amp * (0.6 + 0.4 * p), f"tag:{words[k].text}"))
+        # 2. Semantic units by priority within each sentence, never off an acoustic beat.
+        keys = rep.keywords()
+        for first, last in self._sentence_spans(speech, index):
+            cands: list[tuple[int, int, str, str]] = []  # (-priority, word, unit, trigger)
+            for k in range(first, last + 1):
+                key = spoken[k]
+                pair = f"{key} {spoken[k + 1]}" if k + 1 <= last else ""
+                for trig in (pair, key):
+                    for unit in keys.get(trig, []) if trig else []:
+                        cands.append((-rep.units[unit].priority, k, unit, trig))
+            if self._is_question(speech, index, last):
+                cands += [(-rep.units[u].priority, last, u, "?") for u in keys.get("?", [])]
+            arm_picked = False
+            for _, k, unit, trig in sorted(cands):
+                bi = beat_in(k, unit)
+                if bi is None or clashes(float(beats[bi]), unit):
+                    continue
+                taken.add((bi, rep.units[unit].channel))
+                arm_picked |= rep.units[unit].channel == "arms"
+                p = float(prom[bi])
+                events.append(GestureEvent(float(beats[bi]), unit, amp * (0.6 + 0.4 * p), f"keyword:{trig}"))
+            if c.semantic == "embedding" and not arm_picked:
+                self._by_meaning(spoken[first : last + 1], words[first].start_s, words[last].end_s, beats, prom,
+                                 taken, clashes, events, amp)  # fmt: skip
+        semantic_arms = np.array(sorted(e.t_s for e in events if rep.units[e.unit].channel == "arms"))
+        # 3. Ordinary beats: the statistical interpreter picks beat units; some beats get head beats.
+        names = rep.beat_units
+        counts = np.zeros(len(names))
+        prev: tuple[float, str] | None = None
         for bi, (t, p) in enumerate(zip(beats, prom, strict=True)):
-            if bi in taken:
-                continue
-            if rng.random() < c.gesture_rate * (0.35 + 0.65 * p):
-                k = lx.next_lexeme(prev, counts, float(p), rng)
+            r_arm, r_head = rng.random(), rng.random()  # always two draws per beat: prefix-stable
+            near_semantic = semantic_arms.size and np.any((semantic_arms - t < 0.8) & (t - semantic_arms < 0.5))
+            if (
+                names
+                and (bi, "arms") not in taken
+                and not near_semantic
+                and r_arm < c.amount * c.gesture_rate * (0.35 + 0.65 * p)
+            ):
+                avoid = frozenset([prev[1]]) if prev is not None and t - prev[0] < NO_REPEAT_S else frozenset()
+                k = rep.next_beat_unit(counts, float(p), rng, avoid)
                 counts[k] += 1
-                prev = k
-                events.append(GestureEvent(float(t), lx.ARM_LEXEMES[k], c.amplitude * (0.45 + 0.55 * p), "beat"))
-            if p > 0.5 and rng.random() < c.head_beat_prob * p:
-                events.append(GestureEvent(float(t), "head_beat", c.amplitude * p, "beat"))
+                prev = (float(t), names[k])
+                events.append(GestureEvent(float(t), names[k], amp * (0.45 + 0.55 * p), "beat"))
+            if (bi, "head") not in taken and p > 0.5 and r_head < c.head_beat_prob * p and "head_beat" in rep.units:
+                events.append(GestureEvent(float(t), "head_beat", amp * p, "beat"))
         events.sort(key=lambda e: (e.t_s, e.source == "beat"))
         return events
 
-    # --- synthesis ------------------------------------------------------------------------
-    def _min_time_s(self, a: np.ndarray, b: np.ndarray) -> float:
-        """Shortest minimum-jerk move from pose ``a`` to ``b`` whose wrist speed stays under the cap.
+    def _by_meaning(self, sentence, t0, t1, beats, prom, taken, clashes, events, amp) -> None:
+        """Sentence-embedding choice (learn extra): the unit whose meaning is closest, on the sentence's most
+        prominent free beat."""
+        if self._meaning is None:
+            from robogest.generators.meaning import MeaningChooser
 
-        Poses blend linearly in angle space, so the wrists move on curves: the path's steepest stretch
-        (wrist metres per unit of blend, sampled at 16 points) times the quintic's peak rate 1.875 / T
-        gives the peak speed.
+            self._meaning = MeaningChooser(self.repertoire)
+        pick = self._meaning.choose(list(sentence))
+        if pick is None:
+            return
+        unit = pick[0]
+        idx = [int(i) for i in np.where((beats >= t0 - 0.05) & (beats <= t1))[0] if (int(i), "arms") not in taken]
+        for bi in sorted(idx, key=lambda i: -prom[i]):
+            if not clashes(float(beats[bi]), unit):
+                taken.add((bi, "arms"))
+                p = float(prom[bi])
+                events.append(GestureEvent(float(beats[bi]), unit, amp * (0.6 + 0.4 * p), f"meaning:{pick[1]:.2f}"))
+                return
+
+    @staticmethod
+    def _sentence_spans(speech: Speech, index: list[int | None]) -> list[tuple[int, int]]:
+        """Sentences as spoken-word index ranges: from the text's punctuation when it lines up with the
+        words, else split at pauses of 0.3 s or more between words."""
+        n = len(speech.words)
+        spans: list[tuple[int, int]] = []
+        if speech.text and index:
+            for first, last, _ in sentences(speech.text):
+                ks = [k for k in index[first : last + 1] if k is not None]
+                if ks:
+                    spans.append((min(ks), max(ks)))
+            if spans:
+                return spans
+        start = 0
+        for k in range(1, n + 1):
+            if k == n or speech.words[k].start_s - speech.words[k - 1].end_s >= 0.3:
+                spans.append((start, k - 1))
+                start = k
+        return spans
+
+    @staticmethod
+    def _is_question(speech: Speech, index: list[int | None], last: int) -> bool:
+        if not speech.text or not index:
+            return False
+        return any(end == "?" and index[lw] == last for _, lw, end in sentences(speech.text) if lw < len(index))
+
+    # --- synthesis ------------------------------------------------------------------------
+    def _path(self, a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+        """Wrist path of a minimum-jerk move from pose ``a`` to ``b``: the steepest stretch (wrist metres per
+        unit of blend) and the fraction of the move's duration at which the faster wrist peaks.
+
+        Poses blend linearly in angle space, so the wrists move on curves whose speed peak is not always at
+        the middle of the move; placing a stroke by this fraction puts its real speed peak on the beat.
         """
         key = a.tobytes() + b.tobytes()
         if key not in self._fk_cache:
-            s = np.linspace(0.0, 1.0, 17)[:, None]  # (S, 1) blend
+            s = np.linspace(0.0, 1.0, 33)[:, None]  # (S, 1) blend
             rot = dofs_to_rotations(a + (b - a) * s)  # (S, J, 4)
             p = CANONICAL.forward_kinematics(rot, np.zeros((len(s), 3)))  # (S, J, 3)
             w = p[:, [CANONICAL.index("l_wrist"), CANONICAL.index("r_wrist")]]  # (S, 2, 3)
-            self._fk_cache[key] = float(np.linalg.norm(np.diff(w, axis=0), axis=-1).max() * (len(s) - 1))
-        return 1.875 * self._fk_cache[key] / self.config.max_wrist_speed_m_s
+            rate = np.linalg.norm(np.diff(w, axis=0), axis=-1) * (len(s) - 1)  # (S-1, 2) m per unit blend
+            mid = 0.5 * (s[1:, 0] + s[:-1, 0])
+            u = np.linspace(0.0, 1.0, 201)
+            su = u**3 * (10 - 15 * u + 6 * u**2)
+            dsu = 30 * u**2 * (1 - u) ** 2
+            k = int(np.argmax(rate.max(axis=0)))  # the wrist that moves most
+            speed = np.interp(su, mid, rate[:, k]) * dsu
+            frac = float(u[np.argmax(speed)]) if speed.max() > 1e-9 else 0.5
+            self._fk_cache[key] = (float(rate.max()), frac)
+        return self._fk_cache[key]
+
+    def _min_time_s(self, a: np.ndarray, b: np.ndarray) -> float:
+        """Shortest minimum-jerk move from pose ``a`` to ``b`` whose wrist speed stays under the cap (the
+        path's steepest stretch times the quintic's peak rate 1.875 / T)."""
+        c = self.config
+        t = 1.875 * self._path(a, b)[0] / c.max_wrist_speed_m_s
+        if c.max_joint_speed_rad_s or c.max_joint_accel_rad_s2:
+            d = float(np.abs(b - a).max())  # largest angle change, rad
+            if c.max_joint_speed_rad_s:
+                t = max(t, 1.875 * d / c.max_joint_speed_rad_s)  # quintic peak velocity 1.875 d / T
+            if c.max_joint_accel_rad_s2:
+                t = max(t, float(np.sqrt(5.7735 * d / c.max_joint_accel_rad_s2)))  # peak accel 5.77 d / T²
+        return t
+
+    def _prep_beat(
+        self, beats_s: np.ndarray, free_s: float, s0: float, need_s: float, frac: float
+    ) -> tuple[float, float] | None:
+        """A beat ``b`` before ``s0`` on which a preparation ending at ``s0`` can peak (its speed peak is at
+        ``frac`` of its duration ``d = (s0 - b) / (1 - frac)``): at least ``need_s`` long, starting no earlier
+        than ``free_s`` and within ``prep_s``. Of those, the one that best fills ``[free_s, s0]``: the
+        preparation flows out of the previous gesture rather than leaving the arms parked.
+        Returns ``(beat, start)``."""
+        c = self.config
+        frac = min(max(frac, 0.2), 0.8)
+        d = (s0 - beats_s) / (1.0 - frac)
+        start = s0 - d
+        ok = (beats_s < s0) & (d >= need_s - 1e-9) & (s0 - beats_s <= c.prep_s) & (start >= free_s - 1e-9)
+        if not ok.any():
+            return None
+        k = int(np.argmin(np.where(ok, start - free_s, np.inf)))
+        return float(beats_s[k]), float(start[k])
+
+    def _relax_on_beat(self, tr: _Track, beats_s: np.ndarray, before_s: float) -> None:
+        """In a long gap, settle into READY with a slow move centred on a free beat (its peak on the beat)."""
+        c = self.config
+        half = max(0.35, self._min_time_s(tr.last_v, READY) / c.prep_speed_ratio / 2)
+        ok = (beats_s - half >= tr.last_t) & (beats_s + half <= before_s)
+        if ok.any():
+            b = float(beats_s[ok][0])
+            tr.add(b - half, tr.last_v)
+            tr.add(b + half, READY)
 
     def _arm_track(
-        self, events: list[GestureEvent], rests: list[tuple[float, float]], end_s: float
+        self, events: list[GestureEvent], rests: list[tuple[float, float]], end_s: float, beats_s: np.ndarray
     ) -> tuple[_Track, list[tuple[float, float, GestureEvent]]]:
-        """Arm/spine keyframes: each gesture is prep -> stroke (centred on its beat) -> hold; between gestures
-        the arms flow straight into the next preparation, relax to READY in longer gaps, and sit exactly at
-        REST in rest windows. Also returns the placed strokes ``(start_s, end_s, event)``."""
+        """Arm/spine keyframes: each gesture is prep -> stroke (centred on its beat) -> hold. Every move made
+        while speaking is centred on an acoustic beat (preparations and relaxations are slower than strokes);
+        where speech goes on without a chosen beat the pose is held; in rest windows the arms sit exactly
+        at REST (the retraction starts when the pause does). Also returns the placed strokes
+        ``(start_s, end_s, event)``."""
         c = self.config
         placed: list[tuple[float, float, GestureEvent]] = []
         tr = _Track()
         tr.add(0.0, REST)
-        arm = [e for e in events if lx.UNITS[e.unit].channel == "arms"]
-        items: list[tuple[float, str, object]] = [(e.t_s - lx.UNITS[e.unit].stroke_s / 2, "event", e) for e in arm]
+        arm = [e for e in events if self.repertoire.units[e.unit].channel == "arms"]
+        units = self.repertoire.units
+        items: list[tuple[float, str, object]] = [(e.t_s - units[e.unit].stroke_s / 2, "event", e) for e in arm]
         items += [(r0, "rest", (r0, r1)) for r0, r1 in rests]
         items.sort(key=lambda x: (x[0], x[1] != "rest"))
         for _, kind, obj in items:
@@ -267,26 +456,39 @@ class RhythmGenerator(Generator):
                 tr.add(r1, REST)
                 continue
             e: GestureEvent = obj  # type: ignore[assignment]
-            u = lx.UNITS[e.unit]
+            u = self.repertoire.units[e.unit]
             prep_pose = READY + e.amplitude * u.prep
             stroke_pose = READY + e.amplitude * u.stroke
             stroke_s = max(c.stroke_scale * u.stroke_s, self._min_time_s(prep_pose, stroke_pose))
-            s0, s1 = e.t_s - stroke_s / 2, e.t_s + stroke_s / 2
-            hold_end = s1 + u.hold_s
-            need = max(c.min_prep_s, self._min_time_s(tr.last_v, prep_pose) / c.prep_speed_ratio)
-            prep_start = max(tr.last_t, s0 - max(c.prep_s, need))
+            f_s = self._path(prep_pose, stroke_pose)[1]
+            s0, s1 = e.t_s - f_s * stroke_s, e.t_s + (1 - f_s) * stroke_s
+            hold_end = s1 + c.hold_scale * u.hold_s
             nxt = [r0 for r0, _ in rests if r0 > tr.last_t]
-            if s0 - prep_start < need - 1e-9:
-                continue  # no time to prepare at a natural speed
+            if s0 < tr.last_t + 1e-6:
+                continue  # still busy with the previous gesture
             if nxt and hold_end + max(c.retract_s, self._min_time_s(stroke_pose, REST)) > nxt[0]:
                 continue  # it would run into a rest period
-            if prep_start - tr.last_t > c.ready_after_s:
-                relax = max(0.5, self._min_time_s(tr.last_v, READY))
-                if prep_start - tr.last_t > relax + need:
-                    tr.add(tr.last_t + relax, READY)  # settle into the ready pose while waiting
-            tr.add(prep_start, tr.last_v)
-            tr.add(s0, prep_pose)
-            tr.add(s1, stroke_pose)
+            if s0 - tr.last_t > c.ready_after_s + 2 * c.prep_s:
+                self._relax_on_beat(tr, beats_s, s0 - c.prep_s)
+            # Preparation: a slower move into the prep pose whose speed peak lies on an earlier acoustic beat,
+            # so it never adds a peak off the beat. Without such a beat the stroke starts from the held pose.
+            need = max(c.min_prep_s, self._min_time_s(tr.last_v, prep_pose) / c.prep_speed_ratio)
+            prep = self._prep_beat(beats_s, tr.last_t, s0, need, self._path(tr.last_v, prep_pose)[1])
+            if prep is not None:
+                tr.add(prep[1], tr.last_v)
+                tr.add(s0, prep_pose)
+                tr.add(s1, stroke_pose)
+            else:
+                d = max(stroke_s, self._min_time_s(tr.last_v, stroke_pose))
+                f_d = self._path(tr.last_v, stroke_pose)[1]
+                if e.t_s - f_d * d < tr.last_t + 1e-6:
+                    continue  # no time for the stroke at a natural speed
+                s0, s1 = e.t_s - f_d * d, e.t_s + (1 - f_d) * d
+                hold_end = s1 + c.hold_scale * u.hold_s
+                if nxt and hold_end + max(c.retract_s, self._min_time_s(stroke_pose, REST)) > nxt[0]:
+                    continue
+                tr.add(s0, tr.last_v)
+                tr.add(s1, stroke_pose)
             placed.append((s0, s1, e))
             tr.add(hold_end, stroke_pose)
         if not rests or rests[-1][1] < end_s - 1e-6:
@@ -296,7 +498,8 @@ class RhythmGenerator(Generator):
 
     def strokes(self, speech: Speech, seed: int = 0) -> list[tuple[float, float, GestureEvent]]:
         """The arm strokes :meth:`generate` makes: ``(start_s, end_s, event)``, speed peak at ``event.t_s``."""
-        return self._arm_track(self.plan(speech, seed), self.rest_windows(speech), speech.duration_s)[1]
+        ab = self.beats(speech)
+        return self._arm_track(self.plan(speech, seed, ab), self.rest_windows(speech), speech.duration_s, ab.t_s)[1]
 
     def _head_track(self, events: list[GestureEvent], rests: list[tuple[float, float]]) -> tuple[_Track, list]:
         tr = _Track()
@@ -305,7 +508,7 @@ class RhythmGenerator(Generator):
         shakes: list[tuple[float, float, float, float]] = []
         busy_until = 0.0
         for e in events:
-            u = lx.UNITS[e.unit]
+            u = self.repertoire.units[e.unit]
             if u.channel != "head":
                 continue
             s0, s1 = e.t_s - u.stroke_s / 2, e.t_s + u.stroke_s / 2
@@ -331,8 +534,10 @@ class RhythmGenerator(Generator):
         n = speech.n_frames if fps == speech.fps else round(speech.duration_s * fps)
         t = np.arange(n) / fps  # (T,)
         rests = self.rest_windows(speech)
-        events = self.plan(speech, seed)
-        dofs = self._arm_track(events, rests, speech.duration_s)[0].sample(t)  # (T, D)
+        ab = self.beats(speech)
+        events = self.plan(speech, seed, ab)
+        beats = ab.t_s
+        dofs = self._arm_track(events, rests, speech.duration_s, beats)[0].sample(t)  # (T, D)
         head, shakes = self._head_track(events, rests)
         dofs[:, list(HEAD_DOFS)] += head.sample(t)
         for s0, s1, hz, amp in shakes:
@@ -360,8 +565,13 @@ class RhythmGenerator(Generator):
         out[:, DOF["spine_yaw"]] = a * np.sin(2 * np.pi * 0.17 * t + ph[1])
         out[:, DOF["head_pitch"]] = 0.5 * a * np.sin(2 * np.pi * 0.31 * t + ph[2])
         out[:, DOF["head_yaw"]] = 0.8 * a * np.sin(2 * np.pi * 0.13 * t + ph[3])
-        # The hands never freeze completely while speaking (a person's wrists drift at a few cm/s).
+        # The hands never freeze while speaking. Each wrist circles slowly (elbow up/down and arm out/in in
+        # quadrature, levers ~0.27 m and ~0.4 m): a circle has a steady speed, so this drift adds motion but
+        # no speed peaks of its own that could land off the beats.
+        c = self.config
+        w = 2 * np.pi * c.drift_hz
+        r = 0.0 if c.gestures == "none" else c.drift_m_s * c.amount / w  # circle radius, m (scales with amount)
         for k, side in enumerate("lr"):
-            out[:, DOF[f"{side}_elbow"]] = 2.5 * a * np.sin(2 * np.pi * 0.37 * t + ph[4 + 2 * k])
-            out[:, DOF[f"{side}_flex"]] = 1.5 * a * np.sin(2 * np.pi * 0.29 * t + ph[5 + 2 * k])
+            out[:, DOF[f"{side}_elbow"]] = r / 0.27 * np.sin(w * t + ph[4 + 2 * k])
+            out[:, DOF[f"{side}_abd"]] = r / 0.40 * np.cos(w * t + ph[4 + 2 * k])
         return out * env[:, None]

@@ -18,6 +18,8 @@ truncated checkpoint behind.
 from __future__ import annotations
 
 import os
+import zipfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +31,8 @@ from robogest.learn import require_torch
 
 FORMAT = "robogest-checkpoint"
 VERSION = 1
+#: Largest checkpoint file read, bytes (the shipped models are a few MB; a 1e9-parameter model is 4 GB).
+MAX_CHECKPOINT_BYTES = 4 * 1024**3
 
 
 def _tensors(d: dict[str, np.ndarray]) -> dict[str, Any]:
@@ -60,8 +64,8 @@ def save_checkpoint(ckpt: dict[str, Any], path: str | os.PathLike) -> Path:
     """Write ``ckpt`` to ``path`` atomically."""
     torch = require_torch()
     path = Path(path)
-    with atomic_path(path) as tmp:
-        torch.save(ckpt, tmp)
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:  # a file object: a full disk raises OSError, not RuntimeError
+        torch.save(ckpt, f)
     return path
 
 
@@ -77,6 +81,16 @@ def load_checkpoint(path: str | os.PathLike, map_location: str = "cpu") -> dict[
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: checkpoint not found (train one with `robogest train --model NAME ...`)")
+    size = path.stat().st_size
+    if size > MAX_CHECKPOINT_BYTES:
+        raise InputError(
+            f"{path}: {size / 1024**3:.1f} GiB is larger than the {MAX_CHECKPOINT_BYTES / 1024**3:.0f} GiB a "
+            "robogest checkpoint can be"
+        )
+    # The zip format stores each tensor as a record whose length PyTorch checks against the declared size; the
+    # legacy format allocates whatever the file declares before reading, so it is refused.
+    if not zipfile.is_zipfile(path):
+        raise InputError(f"{path}: not a readable checkpoint (not PyTorch's zip format: legacy or corrupt; re-save it)")
     try:
         ckpt = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as e:  # torch raises many types for corrupt files
@@ -86,6 +100,34 @@ def load_checkpoint(path: str | os.PathLike, map_location: str = "cpu") -> dict[
     if ckpt.get("version", 0) > VERSION:
         raise InputError(f"{path}: checkpoint version {ckpt['version']} is newer than this robogest ({VERSION})")
     return ckpt
+
+
+def build_model(ckpt: dict[str, Any], make: Callable[[], Any], path: str | os.PathLike, device: str = "cpu") -> Any:
+    """The checkpoint's network with its weights loaded; its sizes are checked before any memory is allocated.
+
+    ``make()`` builds the network from the checkpoint's config. It runs first on PyTorch's meta device (shapes
+    only, no memory): a config that asks for other weights than the file stores (a crafted or corrupt file asking
+    for gigabytes) is refused with one line, so the real network is never bigger than the file.
+    """
+    torch = require_torch()
+    state = ckpt.get("model_state")
+    if not isinstance(state, dict) or not all(isinstance(v, torch.Tensor) for v in state.values()):
+        raise InputError(f"{path}: not a robogest checkpoint (model_state is not a dict of tensors)")
+    try:
+        with torch.device("meta"):
+            want = {k: tuple(v.shape) for k, v in make().state_dict().items()}
+    except (TypeError, ValueError, KeyError, RuntimeError) as e:
+        raise InputError(f"{path}: invalid model config ({type(e).__name__}: {e})") from None
+    have = {k: tuple(v.shape) for k, v in state.items()}
+    if want != have:
+        first = sorted(set(want.items()) ^ set(have.items()))[0]
+        raise InputError(
+            f"{path}: the stored weights do not match the model config (first difference: {first[0]} {first[1]}); "
+            "the file is corrupt or was not written by this robogest"
+        )
+    model = make().to(torch.device(device))
+    model.load_state_dict(state)
+    return model
 
 
 def normalization_arrays(ckpt: dict[str, Any]) -> dict[str, np.ndarray]:

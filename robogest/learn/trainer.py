@@ -27,6 +27,7 @@ from robogest.data.datasets import load_dataset, official_split
 from robogest.data.features import FeatureConfig
 from robogest.data.prep import Normalization, make_windows, split_takes
 from robogest.errors import InputError
+from robogest.fileio import atomic_path
 from robogest.learn import dist as D
 from robogest.learn import require_torch
 from robogest.learn.checkpoint import load_checkpoint, make_checkpoint, save_checkpoint
@@ -350,7 +351,8 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
             save_checkpoint(ckpt, out / "last.pt")
             if improved or not best_path.is_file():
                 save_checkpoint(ckpt, best_path)
-            (out / "history.json").write_text(json.dumps(history, indent=1), encoding="utf-8")
+            with atomic_path(out / "history.json") as tmp:
+                tmp.write_text(json.dumps(history, indent=1), encoding="utf-8")
         say(
             f"{what}  train {train_loss:.4f}  val {val:.4f}  "
             f"{history[-1]['seconds']:.1f} s{'  *best' if improved else ''}"

@@ -22,12 +22,18 @@ import numpy as np
 from robogest.errors import InputError
 from robogest.fileio import atomic_path
 from robogest.motion import rotations as R
-from robogest.motion.human_motion import HumanMotion
+from robogest.motion.human_motion import HumanMotion, check_take
 from robogest.motion.skeleton import Skeleton
 
 #: File centimetres per metre used by :func:`save_bvh`.
 BVH_EXPORT_UNITS_PER_M = 100.0
 _AXES = "XYZ"
+#: Frame times accepted, seconds (1 to 1000 frames per second); others are typos or unit mix-ups.
+FRAME_TIME_RANGE_S = (1e-3, 1.0)
+#: Largest BVH read, bytes, and largest frames x joints it may expand to (1 h at 120 fps of 100 joints is 4.3e7),
+#: checked before the arrays are allocated.
+MAX_BVH_BYTES = 2 * 1024**3
+MAX_FRAME_JOINTS = 60_000_000
 
 
 @dataclass
@@ -59,6 +65,10 @@ def _err(path: Path, msg: str, fix: str) -> InputError:
 def _read_lines(path: Path) -> list[str]:
     if not path.is_file():
         raise InputError(f"{path}: no such BVH file. Check the path.")
+    size = path.stat().st_size
+    if size > MAX_BVH_BYTES:
+        raise _err(path, f"{size / 1024**3:.1f} GiB is larger than the {MAX_BVH_BYTES / 1024**3:.0f} GiB robogest "
+                   "reads", "Split the take into shorter files")  # fmt: skip
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as e:
@@ -155,7 +165,7 @@ def _parse_hierarchy(lines: list[str], path: Path) -> tuple[list[str], list[int]
     return names, parents, offsets, channels, end_sites, motion_line
 
 
-def _parse_motion(lines: list[str], start: int, n_channels: int, path: Path) -> tuple[np.ndarray, float]:
+def _parse_motion(lines: list[str], start: int, n_channels: int, n_joints: int, path: Path) -> tuple[np.ndarray, float]:
     """Frame values ``(T, C)`` in file units/degrees and the frame time in seconds."""
     header: dict[str, tuple[str, int]] = {}
     i = start + 1
@@ -172,32 +182,44 @@ def _parse_motion(lines: list[str], start: int, n_channels: int, path: Path) -> 
         raise _err(path, "MOTION section lacks 'Frames:' or 'Frame Time:'", "The file is truncated; re-export it")
     n_frames = int(_float(header["frames"][0], path, header["frames"][1]))
     frame_time = _float(header["frame time"][0], path, header["frame time"][1])
-    if not frame_time > 0:
-        raise _err(path, f"Frame Time {frame_time} is not positive", "Set the frame time in seconds (e.g. 0.0333333)")
+    lo, hi = FRAME_TIME_RANGE_S
+    if not lo <= frame_time <= hi:
+        raise _err(
+            path,
+            f"Frame Time {frame_time:g} s is outside {lo:g}..{hi:g} s (1 to 1000 frames per second)",
+            "Set the frame time in seconds (e.g. 0.0333333 for 30 fps)",
+        )
     rows = [(j + 1, ln) for j, ln in enumerate(lines[i:], start=i) if ln.strip()]
     if n_frames <= 0:
         raise _err(path, "the file has no frames", "Export at least one frame")
+    check_take(n_frames, 1.0 / frame_time, str(path))
     if len(rows) != n_frames:
         raise _err(
             path,
             f"frame count mismatch: the header says Frames: {n_frames} but {len(rows)} data lines follow",
             "Fix the 'Frames:' line or re-export the file",
         )
-    toks = [ln.split() for _, ln in rows]
-    for (ln, _), t in zip(rows, toks, strict=True):
+    if n_frames * max(1, n_joints) > MAX_FRAME_JOINTS:
+        raise _err(
+            path,
+            f"{n_frames} frames x {n_joints} joints is more than the {MAX_FRAME_JOINTS:.0e} robogest reads at once",
+            "Split the take into shorter files",
+        )
+    data = np.empty((n_frames, n_channels))  # (T, C); filled row by row so no token list of the whole file is built
+    for k, (ln, line) in enumerate(rows):
+        t = line.split()
         if len(t) != n_channels:
             raise _err(
                 path,
                 f"line {ln}: {len(t)} values but the HIERARCHY declares {n_channels} channels",
                 "Repair or re-export the file",
             )
-    try:
-        data = np.array(toks, dtype=np.float64)  # (T, C)
-    except ValueError:
-        for (ln, _), t in zip(rows, toks, strict=True):
+        try:
+            data[k] = np.array(t, dtype=np.float64)
+        except ValueError:
             for v in t:
                 _float(v, path, ln)
-        raise  # pragma: no cover - one token above must have failed
+            raise  # pragma: no cover - one token above must have failed
     if not np.isfinite(data).all():
         bad = int(np.argwhere(~np.isfinite(data))[0, 0])
         raise _err(path, f"line {rows[bad][0]}: non-finite value", "Repair or re-export the file")
@@ -241,7 +263,7 @@ def read_bvh(path: str | os.PathLike, scale: float | None = None) -> BvhData:
     lines = _read_lines(path)
     names, parents, offsets_l, channels, end_l, motion_line = _parse_hierarchy(lines, path)
     n_ch = sum(len(c) for c in channels)
-    data, frame_time = _parse_motion(lines, motion_line, n_ch, path)
+    data, frame_time = _parse_motion(lines, motion_line, n_ch, len(names), path)
     offsets = np.array(offsets_l, dtype=np.float64)  # (J, 3) file units
     if scale is None:
         scale = _detect_scale(offsets, parents, end_l)

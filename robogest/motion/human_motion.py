@@ -10,6 +10,23 @@ from robogest.errors import InputError
 from robogest.motion import rotations as R
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M, Skeleton
 
+#: Motion files robogest reads: frame rates, Hz, and the longest take, seconds. Beyond these a file is broken or
+#: crafted, and resampling it to the command rate would allocate without bound.
+FPS_RANGE_HZ = (1.0, 1000.0)
+MAX_DURATION_S = 24 * 3600.0
+
+
+def check_take(n_frames: int, fps: float, source: str) -> None:
+    """Refuse a motion file whose frame rate or length (``n_frames / fps`` s) is absurd; ``source`` names it."""
+    lo, hi = FPS_RANGE_HZ
+    if not lo <= fps <= hi:
+        raise InputError(f"{source}: frame rate {fps:g} fps is outside {lo:g}..{hi:g}; fix the file's frame rate")
+    if n_frames / fps > MAX_DURATION_S:
+        raise InputError(
+            f"{source}: {n_frames} frames at {fps:g} fps last {n_frames / fps:.0f} s, longer than the "
+            f"{MAX_DURATION_S:.0f} s robogest reads; split the take"
+        )
+
 
 @dataclass(eq=False)
 class HumanMotion:

@@ -10,14 +10,14 @@ skeleton's point of view and are dropped. The body model file is not needed: bon
 from __future__ import annotations
 
 import os
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from robogest.errors import InputError
+from robogest.fileio import read_npz
 from robogest.motion import rotations as R
-from robogest.motion.human_motion import HumanMotion
+from robogest.motion.human_motion import HumanMotion, check_take
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
 
 #: Canonical joint -> SMPL(-X/-H) joint index (the first 22 joints are shared by the three models).
@@ -88,11 +88,7 @@ def load_smplx(path: str | os.PathLike, fps: float | None = None) -> HumanMotion
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such SMPL-X file. Check the path.")
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            data = {k: npz[k] for k in npz.files}
-    except (OSError, ValueError, zipfile.BadZipFile) as e:
-        raise InputError(f"{path}: not a readable .npz ({e}). Pass an SMPL-X parameter file.") from None
+    data = read_npz(path, what="SMPL-X")
     rotvec = _body_rotvecs(data, path)  # (T, 22, 3)
     n_frames = rotvec.shape[0]
     if n_frames == 0:
@@ -101,7 +97,11 @@ def load_smplx(path: str | os.PathLike, fps: float | None = None) -> HumanMotion
         key = next((k for k in _FPS_KEYS if k in data), None)
         if key is None:
             raise InputError(f"{path}: no frame rate ({' / '.join(_FPS_KEYS)}). Pass fps= explicitly.")
-        fps = float(np.asarray(data[key]).reshape(-1)[0])
+        try:
+            fps = float(np.asarray(data[key]).reshape(-1)[0])
+        except (TypeError, ValueError, IndexError):
+            raise InputError(f"{path}: {key} is not a number") from None
+    check_take(n_frames, fps, str(path))
     trans = np.asarray(data.get("trans", np.zeros((n_frames, 3))), dtype=np.float64)
     if trans.shape != (n_frames, 3):
         raise InputError(f"{path}: 'trans' must be ({n_frames}, 3), got {trans.shape}")

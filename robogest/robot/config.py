@@ -25,7 +25,9 @@ HUMAN_POINTS = (
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # allow_inf_nan=False: every number in a robot file (limits, rest, speeds, offsets, gear ratios, retarget
+    # weights, frame angles) must be finite; NaN or .inf is refused naming the key.
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class JointConfig(_Strict):
@@ -120,6 +122,11 @@ class RobotConfig(_Strict):
         if self.bus is not None:
             missing = [n for n in names if n not in self.bus.servos]
             extra = [n for n in self.bus.servos if n not in names]
+            if missing and extra:  # most often one name mistyped in joints or in bus.servos
+                raise ValueError(
+                    f"bus.servos has no entry for joints {missing} but names {extra}, which are not joints: a typo in"
+                    " one of the two? `robogest robots validate` checks both against the MuJoCo model"
+                )
             if missing:
                 raise ValueError(f"bus.servos has no entry for joints {missing}; add one per joint")
             if extra:
@@ -174,6 +181,8 @@ def load_robot_config(path: str | Path) -> RobotConfig:
         raise ConfigError(f"{path}: cannot read robot file ({e.strerror})") from None
     except yaml.YAMLError as e:
         raise ConfigError(f"{path}: not valid YAML: {e}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: YAML nested too deeply to be a robot file") from None
     if not isinstance(raw, dict):
         raise ConfigError(f"{path}: expected a mapping with keys name, model, joints, retarget")
     try:
@@ -182,6 +191,8 @@ def load_robot_config(path: str | Path) -> RobotConfig:
         lines = [f"{path}: invalid robot definition:"]
         for err in e.errors():
             msg = err["msg"].removeprefix("Value error, ")
+            if err["type"] == "finite_number":
+                msg = f"{err['input']!r} is not a finite number; write a real value (NaN and .inf are not allowed)"
             lines.append(f"  key {_format_loc(err['loc'])}: {msg}")
         raise ConfigError("\n".join(lines)) from None
     if not cfg.model_path.is_file():

@@ -9,6 +9,15 @@ import numpy as np
 
 from robogest.errors import InputError
 
+#: Sample rates accepted, Hz: telephone speech to studio recordings; anything else is a broken header.
+SAMPLE_RATE_RANGE_HZ = (4000, 384000)
+
+
+def _check_rate(p: Path, sr: int) -> None:
+    lo, hi = SAMPLE_RATE_RANGE_HZ
+    if not lo <= sr <= hi:
+        raise InputError(f"audio {p}: sample rate {sr} Hz is outside {lo}..{hi} Hz; the header is broken, re-export it")
+
 
 def to_mono(audio: np.ndarray) -> np.ndarray:
     """Mix down to mono.
@@ -76,6 +85,7 @@ def read_audio(path: str | Path, max_duration_s: float) -> tuple[np.ndarray, int
 
     try:
         info = sf.info(str(p))
+        _check_rate(p, info.samplerate)
         if info.samplerate > 0 and info.frames / info.samplerate > max_duration_s:
             raise InputError(
                 f"audio {p}: {info.frames / info.samplerate:.1f} s is longer than the maximum "
@@ -88,6 +98,7 @@ def read_audio(path: str | Path, max_duration_s: float) -> tuple[np.ndarray, int
         data, sr = _read_fallback(p, sf_exc)
     if data.size == 0:
         raise InputError(f"audio {p}: contains no samples")
+    _check_rate(p, int(sr))
     audio = to_mono(data)
     if audio.shape[0] / sr > max_duration_s:
         raise InputError(

@@ -42,6 +42,9 @@ import numpy as np
 from robogest.errors import InputError
 from robogest.speech.types import Word
 
+#: Largest transcript file read, bytes (a 10-hour transcript with word timings is about 20 MB).
+MAX_TRANSCRIPT_BYTES = 64 * 1024**2
+
 #: TextGrid / aligner labels that mark a pause rather than a word.
 PAUSE_LABELS = frozenset({"", "sil", "<sil>", "sp", "<sp>", "spn", "<eps>"})
 
@@ -119,6 +122,11 @@ def read_transcript(path: str | Path) -> Transcript:
     p = Path(path)
     if not p.is_file():
         raise InputError(f"transcript {p}: file not found")
+    if p.stat().st_size > MAX_TRANSCRIPT_BYTES:
+        raise InputError(
+            f"transcript {p}: {p.stat().st_size / 1024**2:.0f} MiB is larger than the "
+            f"{MAX_TRANSCRIPT_BYTES / 1024**2:.0f} MiB robogest reads; is it really a transcript?"
+        )
     suffix = p.suffix.lower()
     try:
         if suffix == ".textgrid":
@@ -236,9 +244,11 @@ def _collect_word_objs(obj: Any) -> list[dict[str, Any]]:
 def _parse_json(raw: str, p: Path) -> Transcript:
     try:
         data = json.loads(raw)
+        objs = _collect_word_objs(data)
     except json.JSONDecodeError as exc:
         raise InputError(f"transcript {p}: invalid JSON ({exc})") from exc
-    objs = _collect_word_objs(data)
+    except RecursionError:
+        raise InputError(f"transcript {p}: JSON nested too deeply to be a transcript") from None
     if not objs:
         raise InputError(
             f"transcript {p}: no word timings found (expected a list of {{word, start, end}} objects, "

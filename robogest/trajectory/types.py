@@ -4,13 +4,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robogest.errors import InputError
-from robogest.fileio import atomic_path
+from robogest.fileio import atomic_path, read_npz
+
+if TYPE_CHECKING:
+    from robogest.robot.config import RobotConfig
 
 _ARRAY_KEYS = ("t_s", "q_rad", "q_min_rad", "q_max_rad", "v_max_rad_s", "a_max_rad_s2", "rest_q_rad", "silent")
+#: Per-joint limits a trajectory carries, and the :class:`RobotConfig` property each must equal.
+_LIMIT_KEYS = ("q_min_rad", "q_max_rad", "v_max_rad_s", "a_max_rad_s2", "rest_q_rad")
 
 
 @dataclass(eq=False)
@@ -86,18 +92,129 @@ class Trajectory:
 
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:
+        """Read a file written by :meth:`save`, refusing anything that could not have come from it.
+
+        Refused with one :class:`InputError` line naming the file: pickled objects, text where numbers belong,
+        shapes that do not match ``q_rad``'s ``(T, J)``, time stamps that are not finite, do not start at 0,
+        do not increase by one fixed step, imply a rate outside :data:`FPS_RANGE_HZ` or last longer than
+        :data:`MAX_DURATION_S` (a play that would run for ever).
+        """
         path = Path(path)
+        z = read_npz(path, what="trajectory")
+        missing = [k for k in (*_ARRAY_KEYS, "joint_names") if k not in z]
+        if missing:
+            raise InputError(f"{path}: not a robogest trajectory (missing keys {missing})")
+        q = _numbers(z, "q_rad", None, path)
+        if q.ndim != 2 or q.shape[0] < 1 or q.shape[1] < 1:
+            raise InputError(f"{path}: q_rad must be (T, J) with T, J >= 1, got shape {q.shape}")
+        n, j = q.shape
+        names = z["joint_names"]
+        if names.dtype.kind != "U" or names.shape != (j,):
+            raise InputError(f"{path}: joint_names must be {j} strings (one per q_rad column), got {names.dtype} "
+                             f"{names.shape}")  # fmt: skip
+        kw = {k: _numbers(z, k, (j,), path) for k in _ARRAY_KEYS[2:7]}
+        t = _numbers(z, "t_s", (n,), path, finite=True)
+        check_time_stamps(t, path)
+        silent = _numbers(z, "silent", (n,), path)
+        text = {}
+        for key in ("audio_path", "robot"):
+            v = z.get(key, np.array(""))
+            if v.dtype.kind != "U" or v.ndim != 0:
+                raise InputError(f"{path}: {key} must be one string, got {v.dtype} {v.shape}")
+            text[key] = str(v)
+        return cls(t_s=t, q_rad=q, joint_names=[str(s) for s in names], silent=silent != 0, **kw, **text)
+
+
+#: Longest trajectory robogest loads (and so plays), seconds.
+MAX_DURATION_S = 24 * 3600.0
+#: Sample rates a trajectory may have, Hz (the range ``--fps`` accepts).
+FPS_RANGE_HZ = (1.0, 1000.0)
+
+
+def _numbers(
+    z: dict[str, np.ndarray], key: str, shape: tuple[int, ...] | None, path: Path, finite: bool = False
+) -> np.ndarray:
+    """``z[key]`` as float64 (bool stays bool) of ``shape`` (None: any), or an InputError naming the key.
+
+    Only ``finite`` arrays are checked for NaN/inf here; commands and limits are judged against the robot by
+    :func:`check_matches`, which names the joint and sample.
+    """
+    a = z[key]
+    if a.dtype.kind not in "biuf":
+        raise InputError(f"{path}: {key} holds {a.dtype} values, not numbers; not a robogest trajectory")
+    if shape is not None and a.shape != shape:
+        raise InputError(f"{path}: {key} has shape {a.shape}, expected {shape} to match q_rad")
+    if a.dtype.kind == "b":
+        return a.copy()
+    a = a.astype(np.float64)
+    if finite and not np.isfinite(a).all():
+        k = int(np.flatnonzero(~np.isfinite(a.reshape(-1)))[0])
+        raise InputError(f"{path}: {key} holds NaN or inf (first at flat index {k}); the file is corrupt")
+    return a
+
+
+def check_time_stamps(t_s: np.ndarray, path: str | Path) -> None:
+    """Refuse sample times ``(T,)`` s that are not ``k / fps`` for a sane ``fps`` and a sane length."""
+    if len(t_s) and abs(t_s[0]) > 1e-9:
+        raise InputError(f"{path}: time stamps must start at 0 s, t_s[0] = {t_s[0]:g} s")
+    if len(t_s) < 2:
+        return
+    dt = np.diff(t_s)
+    if not (dt > 0).all():
+        k = int(np.flatnonzero(dt <= 0)[0])
+        raise InputError(f"{path}: time stamps must increase, t_s[{k + 1}] = {t_s[k + 1]:g} s follows {t_s[k]:g} s")
+    step = float(np.median(dt))
+    if np.abs(dt - step).max() > 1e-3 * step:
+        raise InputError(f"{path}: time stamps must be evenly spaced (one command rate); resample the trajectory")
+    lo, hi = FPS_RANGE_HZ
+    if not lo <= 1.0 / step <= hi:
+        raise InputError(f"{path}: sample rate {1.0 / step:g} Hz is outside {lo:g}..{hi:g} Hz")
+    if t_s[-1] > MAX_DURATION_S:
+        raise InputError(f"{path}: lasts {t_s[-1]:g} s, longer than the {MAX_DURATION_S:g} s robogest plays; split it")
+
+
+def check_matches(trajectory: Trajectory, robot: RobotConfig, where: str = "") -> None:
+    """Refuse a trajectory whose joints, limits or rest pose differ from the robot definition's.
+
+    Limits always come from the robot; the copies a trajectory (file) carries must agree with them exactly, so
+    a file made for another robot, an edited or a corrupt one is never played. The commands must be finite.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    robot : RobotConfig
+    where : str
+        The file name, for the message (default: "trajectory").
+
+    Raises
+    ------
+    InputError
+        Naming the first differing key and joint, and how to fix it.
+    """
+    where = where or "trajectory"
+    fix = f"regenerate it for {robot.name} (robogest speak ... --robot {robot.name} --save FILE)"
+    if list(trajectory.joint_names) != robot.joint_names:
+        raise InputError(
+            f"{where}: joints {list(trajectory.joint_names)} differ from robot {robot.name}'s {robot.joint_names}; "
+            f"pass the --robot it was made for ({trajectory.robot or 'unknown'}), or {fix}"
+        )
+    for key in _LIMIT_KEYS:
+        mine = np.asarray(getattr(robot, key), dtype=float)
         try:
-            with np.load(path, allow_pickle=False) as z:
-                missing = [k for k in (*_ARRAY_KEYS, "joint_names") if k not in z]
-                if missing:
-                    raise InputError(f"{path}: not a robogest trajectory (missing keys {missing})")
-                kw = {k: np.array(z[k]) for k in _ARRAY_KEYS}
-                return cls(
-                    joint_names=[str(s) for s in z["joint_names"]],
-                    audio_path=str(z["audio_path"]) if "audio_path" in z else "",
-                    robot=str(z["robot"]) if "robot" in z else "",
-                    **kw,
-                )
-        except (OSError, ValueError) as e:
-            raise InputError(f"{path}: cannot read trajectory ({e})") from None
+            theirs = np.asarray(getattr(trajectory, key), dtype=float).reshape(mine.shape)
+        except (TypeError, ValueError):
+            raise InputError(f"{where}: key {key} is not {mine.size} numbers, one per joint; {fix}") from None
+        same = np.isclose(theirs, mine, rtol=1e-9, atol=1e-12)
+        if not same.all():
+            j = int(np.flatnonzero(~same)[0])
+            raise InputError(
+                f"{where}: key {key} of joint {robot.joint_names[j]} is {float(theirs[j])!r} but {float(mine[j])!r} "
+                f"in robot {robot.name}'s definition (limits come from the robot, never the file); {fix}"
+            )
+    bad = ~np.isfinite(np.asarray(trajectory.q_rad, dtype=float))
+    if bad.any():
+        k, j = (int(i) for i in np.argwhere(bad)[0])
+        raise InputError(
+            f"{where}: command q_rad[{k}] of joint {robot.joint_names[j]} is {float(trajectory.q_rad[k, j])!r}, "
+            f"not a finite angle ({int(bad.sum())} such values); {fix}"
+        )

@@ -2,5 +2,6 @@
 
 from robogest.virtualbus.bus import VirtualBus
 from robogest.virtualbus.faults import FaultSpec
+from robogest.virtualbus.servo import ThermalModel
 
-__all__ = ["FaultSpec", "VirtualBus"]
+__all__ = ["FaultSpec", "ThermalModel", "VirtualBus"]

@@ -8,6 +8,7 @@ status packets and samples a ~100 Hz recording of goals, positions and torque.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import math
 import os
@@ -27,7 +28,7 @@ from robogest.fileio import atomic_path
 from robogest.robot.config import RobotConfig
 from robogest.virtualbus import framing
 from robogest.virtualbus.faults import FaultSpec
-from robogest.virtualbus.servo import ERR_ACCESS, ERR_LENGTH, ERR_RANGE, SimServo
+from robogest.virtualbus.servo import ERR_ACCESS, ERR_LENGTH, ERR_RANGE, SimServo, ThermalModel
 from robogest.virtualbus.tables import ModelSpec, find_model
 
 BROADCAST = 0xFE
@@ -54,6 +55,10 @@ _SPEEDS = {
 }  # fmt: skip
 
 
+_COALESCE_S = 0.006  # return-delay-only replies this close behind a due one leave with it
+_TCGETS2 = 0x802C542A  # Linux: ioctl reading struct termios2 (44 bytes), which holds custom speeds
+
+
 def _baud_index(spec: ModelSpec, baudrate: int) -> int | None:
     for value, rate in spec.baud_table.items():
         if abs(rate - baudrate) <= 0.03 * baudrate:
@@ -77,6 +82,12 @@ class VirtualBus:
         servos do (speeds a pty cannot report, like 128000, are accepted).
     record_hz : float
         Sampling rate of :meth:`record`.
+    thermal : ThermalModel, optional
+        How the servos heat with load and cool at rest (default: 25 °C above 30 °C ambient at full load,
+        2 min time constant).
+    return_delay_time : int, optional
+        Return Delay Time register of every servo at power-up (units of 2 us): 0 by default, as on a bus
+        set up by ``servo doctor --fix`` or LeRobot; None keeps each model's factory value (250 on X/AX).
     """
 
     def __init__(
@@ -87,6 +98,8 @@ class VirtualBus:
         start_q_rad: np.ndarray | None = None,
         check_baud: bool = True,
         record_hz: float = 100.0,
+        thermal: ThermalModel | None = None,
+        return_delay_time: int | None = 0,
     ) -> None:
         if robot.bus is None:
             raise ConfigError(f"robot {robot.name!r} has no bus section; add bus: family, protocol, servos")
@@ -108,7 +121,10 @@ class VirtualBus:
                 raise ConfigError(f"robot {robot.name!r}: servo model {sc.model!r} is not emulated") from None
             if spec.family != self.family:
                 raise ConfigError(f"servo model {sc.model} is {spec.family}, but the bus family is {self.family}")
-            servo = SimServo(spec, sc.id, _baud_index(spec, robot.bus.baudrate))
+            servo = SimServo(spec, sc.id, _baud_index(spec, robot.bus.baudrate), thermal)
+            if return_delay_time is not None:
+                servo._store(spec.reg("Return_Delay_Time"), return_delay_time)
+                servo.flash = bytes(servo.mem[: spec.eeprom_end])
             tpr = spec.ticks_per_rad()
 
             def to_ticks(q: float, sc: Any = sc, spec: ModelSpec = spec, tpr: float = tpr) -> float:
@@ -146,6 +162,9 @@ class VirtualBus:
             key=lambda f: f[0],
         )
         self.disconnected = False
+        # (due, status packet, held by an injected delay)
+        self._outq: collections.deque[tuple[float, bytes, bool]] = collections.deque()
+        self._line_free_at = 0.0
 
     # --- lifecycle -------------------------------------------------------------------------------
     def start(self) -> VirtualBus:
@@ -216,7 +235,9 @@ class VirtualBus:
                 next_sample += self.record_period_s
                 if next_sample < now:
                     next_sample = now + self.record_period_s
-            wait = max(0.0, min(next_sample - time.monotonic(), 0.01))
+            self._flush_out()
+            due = self._next_due() or next_sample
+            wait = max(0.0, min(next_sample - time.monotonic(), due - time.monotonic(), 0.01))
             try:
                 ready, _, _ = select.select([self._master], [], [], wait)
                 data = os.read(self._master, 65536) if ready else b""
@@ -237,6 +258,7 @@ class VirtualBus:
                 for pkt in packets:
                     self.stats["packets_in"] += 1
                     self._serve(pkt)
+            self._flush_out()
 
     def _apply_timed_faults(self, t: float) -> None:
         while self._pending_faults and self._pending_faults[0][0] <= t:
@@ -281,8 +303,18 @@ class VirtualBus:
             speed = termios.tcgetattr(self._slave)[5]
         except termios.error:
             return True
-        rate = _SPEEDS.get(speed)
+        rate = _SPEEDS.get(speed) or self._custom_speed()
         return rate is None or abs(rate - servo.baudrate) <= 0.03 * rate
+
+    def _custom_speed(self) -> int | None:
+        """A rate set with BOTHER (pyserial does so for 250000, 128000, ...), read with Linux's TCGETS2."""
+        try:
+            import fcntl
+
+            buf = fcntl.ioctl(self._slave, _TCGETS2, bytes(44))  # struct termios2: c_ospeed at byte 40
+        except (OSError, ValueError, TypeError):
+            return None
+        return int.from_bytes(buf[40:44], "little") or None
 
     def _present(self, sid: int) -> SimServo | None:
         for s in self.servos:
@@ -290,7 +322,33 @@ class VirtualBus:
                 return s
         return None
 
-    def _emit(self, servo_id: int, pkt: bytes, inst: int) -> None:
+    def _run_end(self) -> int:
+        """Length of the run of packets that leave together: the head and the packets queued right behind
+        it only by return delays (the rest of a sync read's replies). Sending them in one write, when the
+        last is due (never early), avoids a wake-up per reply, which would cost a GIL hand-over each (~5 ms
+        when the client spins in the same process), far more than the delays themselves."""
+        q = self._outq
+        end = 1
+        while end < len(q) and not q[end][2] and q[end][0] <= q[0][0] + _COALESCE_S:
+            end += 1
+        return end
+
+    def _next_due(self) -> float | None:
+        return self._outq[self._run_end() - 1][0] if self._outq else None
+
+    def _flush_out(self) -> None:
+        """Send the status packets whose time has come."""
+        now = time.monotonic()
+        while self._outq:
+            end = self._run_end()
+            if self._outq[end - 1][0] > now:
+                return
+            self._write(b"".join(self._outq.popleft()[1] for _ in range(end)), packets=end)
+
+    def _emit(self, servo_id: int, pkt: bytes, inst: int, delay_s: float = 0.0) -> None:
+        """Queue a status packet: it starts ``delay_s`` (the servo's return delay, plus an injected delay)
+        after the line is free, so replies of one sync/bulk read follow each other as on a real chain and an
+        injected delay holds back every reply queued behind it (a stalled bus)."""
         f = self.faults
         if f.noreply and self._rng.random() < f.noreply:
             self._note(f"injected: no reply from id {servo_id} to {_INST_NAMES.get(inst, hex(inst))}")
@@ -298,11 +356,14 @@ class VirtualBus:
         if f.badcrc and self._rng.random() < f.badcrc:
             pkt = pkt[:-1] + bytes([pkt[-1] ^ 0x5A])
             self._note(f"injected: bad checksum from id {servo_id} to {_INST_NAMES.get(inst, hex(inst))}")
-        if f.delay_p and self._rng.random() < f.delay_p:
-            time.sleep(self._rng.uniform(f.delay_min_s, f.delay_max_s))
-        self._write(pkt)
+        held = bool(f.delay_p) and self._rng.random() < f.delay_p
+        if held:
+            delay_s += self._rng.uniform(f.delay_min_s, f.delay_max_s)
+        due = max(time.monotonic(), self._line_free_at) + delay_s
+        self._line_free_at = due
+        self._outq.append((due, pkt, held))
 
-    def _write(self, data: bytes) -> None:
+    def _write(self, data: bytes, packets: int = 1) -> None:
         if self._master is None:
             return
         try:
@@ -311,7 +372,7 @@ class VirtualBus:
             n = 0
         except OSError:
             return
-        self.stats["packets_out"] += 1
+        self.stats["packets_out"] += packets
         self.stats["bytes_out"] += n
         if n < len(data):
             self._note(f"output overflow: client not reading, {len(data) - n} bytes dropped")
@@ -332,7 +393,7 @@ class VirtualBus:
         if inst != PING and (level == 0 or (level == 1 and inst not in (READ, SYNC_READ, BULK_READ))):
             return
         err = code | (P2_ALERT if servo.hw_faults else 0)
-        self._emit(servo.id, framing.build2(servo.id, err, params), inst)
+        self._emit(servo.id, framing.build2(servo.id, err, params), inst, servo.return_delay_s)
 
     def _serve2(self, pkt: framing.Packet) -> None:
         sid, inst, p = pkt.servo_id, pkt.inst, pkt.params
@@ -434,7 +495,7 @@ class VirtualBus:
             if k < len(servos) - 1:
                 pkt += crc16_bytes(pkt)
         pkt += crc16_bytes(pkt)
-        self._emit(BROADCAST, bytes(pkt), FAST_SYNC_READ)
+        self._emit(BROADCAST, bytes(pkt), FAST_SYNC_READ, servos[0].return_delay_s if servos else 0.0)
 
     def _write_checked(self, s: SimServo, addr: int, data: bytes) -> int:
         code = s.write(addr, bytes(data))
@@ -451,7 +512,8 @@ class VirtualBus:
                 return
         elif inst != PING and (level == 0 or (level == 1 and inst != READ)):
             return
-        self._emit(servo.id, framing.build1(servo.id, err | servo.hw_error_bits_p1(), params), inst)
+        pkt = framing.build1(servo.id, err | servo.hw_error_bits_p1(), params)
+        self._emit(servo.id, pkt, inst, servo.return_delay_s)
 
     def _serve1(self, pkt: framing.Packet) -> None:
         sid, inst, p = pkt.servo_id, pkt.inst, pkt.params
@@ -475,6 +537,13 @@ class VirtualBus:
                 s = self._present(i)
                 if s is not None:
                     code, data = s.read(addr, length)
+                    self._status1(s, READ, _P1_ERR.get(code, 0), data)
+            return
+        if inst == BULK_READ and self.family == "dynamixel" and len(p) >= 1:
+            for i in range(1, len(p) - 2, 3):  # 0x00, then (length, id, address) per servo
+                s = self._present(p[i + 1])
+                if s is not None:
+                    code, data = s.read(p[i + 2], p[i])
                     self._status1(s, READ, _P1_ERR.get(code, 0), data)
             return
         if sid == BROADCAST and inst == PING:

@@ -24,6 +24,18 @@ HW_BITS_P1 = {"voltage": 0x01, "overheating": 0x04, "encoder": 0x02, "shock": 0x
 _LAG_TAU_S = 0.015  # position-loop time constant
 
 
+@dataclass(frozen=True)
+class ThermalModel:
+    """First-order winding temperature: it settles at ``ambient_c + rise_c_at_full_load * |load|`` (load as
+    a fraction of the maximum, 0 with torque off) with time constant ``tau_s``. ``time_scale`` > 1 runs the
+    thermal clock faster than the wall clock, so a test can heat a servo for minutes in seconds."""
+
+    ambient_c: float = 30.0
+    rise_c_at_full_load: float = 25.0
+    tau_s: float = 120.0
+    time_scale: float = 1.0
+
+
 @dataclass
 class _Motion:
     cmd: float  # profile generator output, ticks
@@ -36,8 +48,11 @@ class _Motion:
 class SimServo:
     """Control table + motor model of one servo. Not thread-safe: the bus thread owns it."""
 
-    def __init__(self, spec: ModelSpec, servo_id: int, baud_value: int | None = None) -> None:
+    def __init__(
+        self, spec: ModelSpec, servo_id: int, baud_value: int | None = None, thermal: ThermalModel | None = None
+    ) -> None:
         self.spec = spec
+        self.thermal = thermal or ThermalModel()
         self.mem = bytearray(spec.table_size)
         for r in spec.regs:
             self._store(r, r.default)
@@ -45,8 +60,9 @@ class SimServo:
         if baud_value is not None:
             self._store(spec.reg("baud"), baud_value)
         start = float(spec.centre_tick)
-        self.motion = _Motion(cmd=start, pos=start)
+        self.motion = _Motion(cmd=start, pos=start, temp_c=self.thermal.ambient_c)
         self._store(spec.reg("goal"), spec.centre_tick)
+        self.flash = bytes(self.mem[: spec.eeprom_end])  #: EEPROM as it will be after a power cycle
         self.hw_faults: set[str] = set()  #: injected hardware faults, names from HW_BITS_P2
         self.vanished = False
         self.registered: tuple[int, bytes] | None = None  #: pending REG_WRITE (address, data)
@@ -112,10 +128,12 @@ class SimServo:
                 return ERR_LENGTH
             if not r.writable:
                 return ERR_ACCESS
-            if r.addr < self.spec.eeprom_end and self._eeprom_locked():
+            if self._locked(r.addr):
                 return ERR_ACCESS
             value = self._decode(r, data[a - addr : a - addr + r.size])
             if (r.lo is not None and value < r.lo) or (r.hi is not None and value > r.hi):
+                return ERR_RANGE
+            if r.allowed is not None and value not in r.allowed:
                 return ERR_RANGE
             x_series = self.spec.family == "dynamixel" and self.spec.eeprom_locked_by_torque
             if x_series and r.name == self.spec.roles["goal"] and not self.get("min") <= value <= self.get("max"):
@@ -123,10 +141,18 @@ class SimServo:
             a += r.size
         return OK
 
-    def _eeprom_locked(self) -> bool:
+    def _locked(self, addr: int) -> bool:
+        """Whether the write protection of this model refuses a write at ``addr`` now."""
+        if self.spec.family == "feetech":
+            return False  # Lock only decides whether EEPROM writes are saved (see write())
         if self.spec.eeprom_locked_by_torque:
-            return self.torque_on
-        return self.has("lock") and self.get("lock") != 0
+            return addr < self.spec.eeprom_end and self.torque_on
+        return self.has("lock") and self.get("lock") != 0 and not 24 <= addr <= 35  # AX/MX: until power-off
+
+    @property
+    def return_delay_s(self) -> float:
+        """Time between the end of an instruction and the start of this servo's status packet."""
+        return self.get("Return_Delay_Time") * self.spec.return_delay_unit_s
 
     def write(self, addr: int, data: bytes) -> int:
         err = self.check_write(addr, data)
@@ -134,6 +160,9 @@ class SimServo:
             return err
         goal = self.spec.reg("goal")
         self.mem[addr : addr + len(data)] = data
+        eeprom = self.spec.eeprom_end
+        if addr < eeprom and not (self.spec.family == "feetech" and self.get("lock") != 0):
+            self.flash = bytes(self.mem[:eeprom])  # Feetech with Lock = 1: applied now, lost at power-off
         if addr <= goal.addr < addr + len(data):
             lo, hi = self.get("min"), self.get("max")
             if not lo <= self.get("goal") <= hi:  # P1/Feetech: clamp (P1 also flags an angle error)
@@ -171,6 +200,11 @@ class SimServo:
             self._store(self.spec.by_name["Status"], self.hw_error_bits_p1())
         if self._shutdown_active():
             self._store(self.spec.reg("torque"), 0)
+
+    def power_cycle(self) -> None:
+        """Power off and on: EEPROM back from flash, RAM (torque, Lock, goals) at defaults, faults cleared."""
+        self.mem[: self.spec.eeprom_end] = self.flash
+        self.reboot()
 
     def reboot(self) -> None:
         """REBOOT: clears latched faults, torque off, RAM back to defaults (EEPROM kept)."""
@@ -213,9 +247,11 @@ class SimServo:
         else:
             m.vel = 0.0
             m.cmd, m.cmd_vel = m.pos, 0.0
+        th = self.thermal
         load = self._load_permille()
-        target_temp = 30.0 + 25.0 * abs(load) / 1000.0 + (60.0 if "overheating" in self.hw_faults else 0.0)
-        m.temp_c += (target_temp - m.temp_c) * (1.0 - math.exp(-dt / 120.0))
+        target_temp = th.ambient_c + th.rise_c_at_full_load * abs(load) / 1000.0
+        target_temp += 60.0 if "overheating" in self.hw_faults else 0.0
+        m.temp_c += (target_temp - m.temp_c) * (1.0 - math.exp(-dt * th.time_scale / th.tau_s))
         self._sync_feedback()
 
     def _load_permille(self) -> float:

@@ -5,7 +5,12 @@ This file belongs to the *simulated* bus only: the backends keep their own regis
 being shared by the code under test and the code that checks it.
 
 Sources: ROBOTIS e-manual (XL430-W250, XM430-W350, XL330-M288, AX-12A, MX-28 Protocol 1.0) and the
-Feetech STS/SMS and SCS memory tables (STS3215, SCS0009).
+Feetech STS/SMS and SCS memory tables (STS3215, SCS0009, including their writable factory areas).
+
+EEPROM protection differs by family (:meth:`~robogest.virtualbus.servo.SimServo.check_write`): X-series
+refuse EEPROM writes while torque is on; AX/MX with Lock = 1 accept writes to addresses 24-35 only, until
+power-off; Feetech accept every write, and Lock (0 = unlocked) only decides whether an EEPROM write
+survives a power cycle. Return Delay Time is in units of 2 us on every model.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ class Reg:
     sign_bit: int | None = None  #: sign-magnitude, bit holding the sign (Feetech, Dynamixel P1 speed/load)
     lo: int | None = None  #: writes below are answered with a range error
     hi: int | None = None
+    allowed: tuple[int, ...] | None = None  #: the only values accepted (e.g. a model's operating modes)
 
 
 @dataclass(frozen=True)
@@ -54,6 +60,7 @@ class ModelSpec:
     max_speed_ticks_s: float  #: no-load speed
     big_endian: bool = False
     eeprom_locked_by_torque: bool = True  #: Dynamixel P2; P1/Feetech use a Lock register instead
+    return_delay_unit_s: float = 2e-6  #: one unit of Return_Delay_Time
     by_name: dict[str, Reg] = field(default_factory=dict, compare=False)
     by_addr: dict[int, Reg] = field(default_factory=dict, compare=False)
 
@@ -92,7 +99,7 @@ def _x_series(
         _R("Baud_Rate", 8, 1, "RW", 1, lo=0, hi=7),
         _R("Return_Delay_Time", 9, 1, "RW", 250),
         _R("Drive_Mode", 10, 1, "RW", 0),
-        _R("Operating_Mode", 11, 1, "RW", 3),
+        _R("Operating_Mode", 11, 1, "RW", 3, allowed=(0, 1, 3, 4, 5, 16) if current else (1, 3, 4, 16)),
         _R("Secondary_ID", 12, 1, "RW", 255),
         _R("Protocol_Type", 13, 1, "RW", 2),
         _R("Homing_Offset", 20, 4, "RW", 0, signed=True),
@@ -325,6 +332,15 @@ def _sts_table(number: int) -> tuple[Reg, ...]:
         _R("Status", 65, 1),
         _R("Moving", 66, 1),
         _R("Present_Current", 69, 2, sign_bit=15),
+        _R("Goal_Position_2", 71, 2),
+        # Factory area, writable (LeRobot's configure_motors() writes Maximum_Acceleration, address 85)
+        _R("Moving_Velocity_Threshold", 80, 1, "RW", 1),
+        _R("DTs", 81, 1, "RW", 1),
+        _R("Velocity_Unit_Factor", 82, 1, "RW", 1),
+        _R("Hts", 83, 1, "RW", 0),
+        _R("Maximum_Velocity_Limit", 84, 1, "RW", 254),
+        _R("Maximum_Acceleration", 85, 1, "RW", 254),
+        _R("Acceleration_Multiplier", 86, 1, "RW", 0),
     )
 
 
@@ -368,6 +384,13 @@ def _scs_table(number: int) -> tuple[Reg, ...]:
         _R("Sync_Write_Flag", 64, 1),
         _R("Status", 65, 1),
         _R("Moving", 66, 1),
+        # Factory area, writable
+        _R("PWM_Maximum_Step", 78, 1, "RW", 0),
+        _R("Moving_Velocity_Threshold", 79, 1, "RW", 1),
+        _R("DTs", 80, 1, "RW", 1),
+        _R("Minimum_Velocity_Limit", 81, 1, "RW", 0),
+        _R("Maximum_Velocity_Limit", 82, 1, "RW", 254),
+        _R("Acceleration_2", 83, 1, "RW", 0),
     )
 
 

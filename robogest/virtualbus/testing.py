@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 from robogest.robot.config import RobotConfig, load_robot_config
+from robogest.trajectory.types import Trajectory
 
 _MJCF = """<mujoco model="{name}"><worldbody><body name="base">
 {joints}</body></worldbody></mujoco>
@@ -73,3 +75,16 @@ def make_robot(
     path = folder / f"{name}.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return load_robot_config(path)
+
+
+def monologue(robot: RobotConfig, seconds: float, fps: float = 50.0, amp_rad: float = 0.45) -> Trajectory:
+    """A long-talk stand-in: gesture bursts of 3 s (0.8 Hz, phase-shifted per joint) with 1 s rests, in limits."""
+    t = np.arange(0, seconds + 1e-9, 1 / fps)
+    cycle = np.mod(t, 4.0)
+    burst = (cycle < 3.0) * np.sin(np.pi * cycle / 3.0) ** 2
+    q = amp_rad * burst[:, None] * np.sin(2 * np.pi * 0.8 * t[:, None] + np.arange(len(robot.joints)) * 0.7)
+    return Trajectory(
+        t_s=t, q_rad=np.clip(q, robot.q_min_rad, robot.q_max_rad), joint_names=robot.joint_names,
+        q_min_rad=robot.q_min_rad, q_max_rad=robot.q_max_rad, v_max_rad_s=robot.v_max_rad_s,
+        a_max_rad_s2=robot.a_max_rad_s2, rest_q_rad=robot.rest_q_rad, silent=np.zeros(len(t), bool),
+    )  # fmt: skip

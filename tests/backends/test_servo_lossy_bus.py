@@ -91,6 +91,7 @@ def test_missed_read_keeps_last_value_then_lost_after_n_ticks(tmp_path, monkeypa
         backend.connect()
         try:
             q0 = backend.read_positions()
+            backend.write_goal(q0)  # the guard reads the present pose before the first goal; do that unpatched
             real = backend._sync_read_raw
             asked: list[list[int]] = []
 

@@ -56,7 +56,7 @@ def test_speak_saves_safe_trajectory(tmp_path, capsys):
     assert "sim tracking error" in text
 
 
-@pytest.mark.parametrize("robot", ["humanoid_xl430", "humanoid_sts3215", "desk_arm_sts3215"])
+@pytest.mark.parametrize("robot", ["humanoid_xl430", "humanoid_sts3215", "desk_arm_sts3215", "so101_sts3215"])
 def test_every_robot_speaks_within_limits(robot, tmp_path):
     out = tmp_path / f"{robot}.npz"
     assert main(["speak", SENTENCE, "--robot", robot, "--save", str(out)]) == 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
@@ -13,7 +14,12 @@ from robogest.cli.main import main
 from robogest.robot import find_robot
 from robogest.virtualbus import VirtualBus
 
-CASES = [("humanoid_xl430", "dynamixel"), ("humanoid_sts3215", "feetech"), ("desk_arm_sts3215", "feetech")]
+CASES = [
+    ("humanoid_xl430", "dynamixel"),
+    ("humanoid_sts3215", "feetech"),
+    ("desk_arm_sts3215", "feetech"),
+    ("so101_sts3215", "feetech"),
+]
 
 
 @pytest.fixture(autouse=True)
@@ -85,7 +91,16 @@ def test_speak_with_five_percent_faults_finishes_safely(capsys):
 
 def test_port_disconnect_mid_speech_stops_with_one_line(capsys):
     robot = find_robot("humanoid_sts3215")
-    with VirtualBus(robot, "disconnect@1.0") as bus:
+    with VirtualBus(robot) as bus:
+
+        def disconnect_once_moving() -> None:  # timed from the first torque-on, not from bus start (TTS may be slow)
+            deadline = time.monotonic() + 60
+            while not any(s.torque_on for s in bus.servos) and time.monotonic() < deadline:
+                time.sleep(0.01)
+            bus.faults.disconnect_at_s = bus.elapsed_s + 0.5
+
+        watcher = threading.Thread(target=disconnect_once_moving, daemon=True)
+        watcher.start()
         t0 = time.monotonic()
         rc = main(["speak", "Hello there, this sentence is long enough to be cut off.", "--robot", robot.name,
                    "--backend", "feetech", "--port", bus.port])  # fmt: skip

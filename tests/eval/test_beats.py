@@ -12,7 +12,9 @@ from robogest.eval.beats import (
     motion_beats,
     pmb,
     pmb_curve,
-    wrist_speed_peaks,
+    stroke_hit_rate,
+    stroke_peaks,
+    stroke_sync,
 )
 
 FPS = 30.0
@@ -66,10 +68,13 @@ def test_motion_beats_at_velocity_minima_give_pmb_100():
     assert pmb(mb, expected) == 100.0
 
 
-def test_wrist_peaks_at_speed_maxima():
+def test_stroke_peaks_at_speed_maxima_of_each_wrist():
     pos = _speed_minima_motion(0.5, 10.0)
-    wp = wrist_speed_peaks(pos, FPS, [0, 1])
+    pos[:, 1] *= 0.0  # the second wrist holds still: only the first one's peaks
+    wp = stroke_peaks(pos, FPS)
     assert np.allclose(wp, np.arange(20) * 0.5 + 0.25, atol=1.01 / FPS)
+    # drift slower than the prominence floor is no stroke
+    assert stroke_peaks(pos * 0.01, FPS).size == 0
 
 
 def test_still_motion_has_no_beats():
@@ -103,9 +108,61 @@ def test_beat_sync_report_on_beat_locked_motion():
     pos = _speed_minima_motion(0.5, 30.0)
     rng = np.random.default_rng(3)
     ab = np.arange(1, 60) * 0.5 + rng.normal(0, 0.01, 59)
-    r = beat_sync_report(pos, FPS, ab, wrists=[0, 1], n_shifts=50)
+    r = beat_sync_report(pos, FPS, ab, wrists=[0, 1], n_shifts=50, onsets_s=np.arange(60) * 0.5 + 0.25)
     assert r["pmb"]["score"] == pytest.approx(100.0)
-    assert set(r) >= {"pmb", "beat_align", "pmb_wrist_peaks", "pmb_curve", "n_motion_beats"}
+    assert set(r) >= {"pmb", "beat_align", "stroke_sync", "pmb_curve", "n_motion_beats"}
+    assert r["stroke_sync"]["hit"] == pytest.approx(1.0)
+    assert "stroke_sync" not in beat_sync_report(pos, FPS, ab, wrists=[0, 1], n_shifts=50)
     # perfectly periodic motion vs periodic beats: shifting by whole periods also matches, so z stays modest
     # — the null captures exactly this rhythm-only agreement
     assert r["pmb"]["null_mean"] > 30.0
+
+
+# --- stroke sync -------------------------------------------------------------------------------------------
+
+
+def _strokes_at(times_s: np.ndarray, seconds: float, fps: float = FPS) -> np.ndarray:
+    """Wrist positions ``(T, 2, 3)`` m whose speed has one 0.15 s-wide bump (a stroke) peaking at each time."""
+    t = np.arange(round(seconds * fps)) / fps
+    speed = np.zeros_like(t)
+    for c in times_s:
+        speed += 1.5 * np.exp(-0.5 * ((t - c) / 0.05) ** 2)  # m/s
+    pos = np.zeros((t.size, 2, 3))
+    pos[:, 0, 1] = np.cumsum(speed) / fps  # one wrist moves along y
+    return pos
+
+
+def test_stroke_hit_rate_closed_form():
+    on = np.array([1.0, 2.0, 3.0])
+    assert stroke_hit_rate(np.array([1.05, 2.5]), on) == 0.5
+    assert stroke_hit_rate(np.array([1.05, 2.5]), on, silent_spans=[(2.4, 2.6)]) == 1.0  # 2.5 is in a pause
+    assert np.isnan(stroke_hit_rate(np.array([2.5]), on, silent_spans=[(2.0, 3.0)]))
+    assert stroke_hit_rate(np.array([1.0]), np.array([])) == 0.0
+
+
+def test_stroke_sync_strokes_on_onsets_score_high(rng):
+    on = audio_beats(rng, 40.0)
+    strokes = np.sort(rng.choice(on, size=50, replace=False))
+    r = stroke_sync(_strokes_at(strokes, 40.0), FPS, on, n_shifts=60)
+    assert r["hit"] > 0.95 and r["z"] > 4.0, r
+    assert r["n_peaks"] == 50 and r["n_onsets"] == on.size and r["n_shifts"] == 60
+
+
+def test_stroke_sync_strokes_off_onsets_score_low(rng):
+    on = audio_beats(rng, 40.0)
+    strokes = np.arange(1.0, 39.0, 0.7)
+    zs = [stroke_sync(_strokes_at(strokes + 0.13 * k, 40.0), FPS, on, n_shifts=60)["z"] for k in range(3)]
+    assert abs(np.mean(zs)) < 1.5, zs
+    # strokes placed halfway between onsets: well below chance
+    mid = (on[1:] + on[:-1]) / 2
+    far = mid[np.minimum(on[1:] - mid, mid - on[:-1]) > 0.11]
+    assert stroke_sync(_strokes_at(far[::2], 40.0), FPS, on, n_shifts=60)["z"] < -2.0
+
+
+def test_stroke_sync_ignores_peaks_in_pauses(rng):
+    on = np.arange(0.5, 20.0, 0.5)
+    pause = [(5.0, 15.0)]
+    strokes = np.concatenate([on[on < 5], np.arange(5.2, 15, 0.5)[:10]])  # off-onset peaks only inside the pause
+    r = stroke_sync(_strokes_at(strokes, 20.0), FPS, on, silent_spans=pause, n_shifts=30)
+    assert r["hit"] == pytest.approx(1.0)
+    assert r["n_peaks"] == int((on < 5).sum())

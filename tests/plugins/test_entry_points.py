@@ -71,7 +71,7 @@ class MemoryBackend(Backend):
     def set_torque(self, on):
         pass
 
-    def write_goal(self, q_rad):
+    def _send_goal(self, q_rad):
         self.q = np.array(q_rad, dtype=float)
         GOALS.append(self.q.copy())
 

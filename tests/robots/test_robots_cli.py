@@ -8,7 +8,7 @@ from robogest.cli.main import main
 def test_list(capsys):
     assert main(["robots", "list"]) == 0
     out = capsys.readouterr().out
-    for name in ("humanoid_xl430", "humanoid_sts3215", "desk_arm_sts3215"):
+    for name in ("humanoid_xl430", "humanoid_sts3215", "desk_arm_sts3215", "so101_sts3215"):
         assert name in out
     assert "dynamixel" in out and "feetech" in out
 

@@ -36,27 +36,44 @@ def test_registered_as_sim():
     assert isinstance(backend, MujocoBackend) and backend.realtime is False
 
 
+def step_toward(b: MujocoBackend, goal: np.ndarray, ticks: int) -> None:
+    """``ticks`` guarded goals, each a step toward ``goal`` at 90 % of the velocity limit, one per control period."""
+    lim = 0.9 * b.robot.v_max_rad_s * b.control_period_s
+    for _ in range(ticks):
+        last = b.last_goal_rad if b.last_goal_rad is not None else b.read_positions()
+        b.write_goal(last + np.clip(goal - last, -lim, lim))
+        b.advance(b.control_period_s)
+
+
 def test_backend_moves_to_goal_and_keeps_time():
     robot = find_robot("humanoid_xl430")
     with MujocoBackend(robot) as b:
+        b.set_control_rate(100.0)
         np.testing.assert_allclose(b.read_positions(), robot.rest_q_rad, atol=1e-9)
         goal = robot.rest_q_rad.copy()
         goal[robot.joint_names.index("l_shoulder_pitch")] = 1.0
         goal[robot.joint_names.index("head_pan")] = -0.5
-        for _ in range(100):  # 1 s in 10 ms steps: no drift
-            b.write_goal(goal)
-            b.advance(0.01)
+        step_toward(b, goal, 100)  # 1 s in 10 ms steps: no drift
         assert b.time_s == pytest.approx(1.0, abs=1e-9)
         np.testing.assert_allclose(b.read_positions(), goal, atol=np.radians(2.0))
         log = b.log
         assert log["q_rad"].shape == (100, 11) and log["t_s"][-1] == pytest.approx(1.0)
-        # goals outside the limits are clipped, NaN refused
-        b.write_goal(robot.q_max_rad + 1.0)
-        np.testing.assert_allclose(b.data.ctrl[b.sim.act_idx], robot.q_max_rad)
-        with pytest.raises(SafetyError):
+        # the guard: outside the limits, NaN, or a step beyond the velocity limit is refused and nothing is sent
+        sent = b.data.ctrl[b.sim.act_idx].copy()
+        with pytest.raises(
+            SafetyError, match=r"torso_yaw = 2\.2000 rad outside \[-1\.2000, 1\.2000\] rad.*and 8 more joints"
+        ):
+            b.write_goal(robot.q_max_rad + 1.0)
+        with pytest.raises(SafetyError, match="torso_yaw = nan is not finite"):
             b.write_goal(np.full(11, np.nan))
+        jump = goal.copy()
+        jump[robot.joint_names.index("head_pan")] = 0.5
+        with pytest.raises(SafetyError, match=r"head_pan steps 1\.0000 rad in one 10\.0 ms tick, limit 0\.0420 rad"):
+            b.write_goal(jump)
         with pytest.raises(InputError):
             b.write_goal(np.zeros(3))
+        np.testing.assert_array_equal(b.data.ctrl[b.sim.act_idx], sent)
+        np.testing.assert_array_equal(b.last_goal_rad, sent)
     # leaving the block glided to rest and disconnected; disconnect twice is safe
     b.disconnect()
     assert b.sim is None
@@ -69,8 +86,7 @@ def test_torque_off_lets_the_arm_fall():
     b.connect()
     goal = robot.rest_q_rad.copy()
     goal[i] = 1.5  # arm raised forward, past horizontal
-    b.write_goal(goal)
-    b.advance(1.5)
+    step_toward(b, goal, 75)  # 1.5 s
     held = b.read_positions()[i]
     assert held == pytest.approx(1.5, abs=0.05)
     b.set_torque(False)
@@ -87,7 +103,7 @@ def test_saturated_servo_runs_at_no_load_speed():
     with MujocoBackend(robot) as b:
         goal = robot.rest_q_rad.copy()
         goal[i] = 1.4
-        b.write_goal(goal)
+        b._send_goal(goal)  # past the guard on purpose: a step it would refuse, to see the motor model saturate
         peak = 0.0
         for _ in range(150):
             b.advance(0.002)

@@ -57,7 +57,7 @@ def test_p1_parser_resyncs_after_garbage():
 
 def test_p2_ping_read_write_through_sdk(tmp_path):
     robot = make_robot(tmp_path)
-    with VirtualBus(robot) as bus:
+    with VirtualBus(robot, return_delay_time=None) as bus:
         port, ph = _dxl(bus, 2.0)
         assert ph.ping(port, 1) == (1060, dxl.COMM_SUCCESS, 0)
         assert ph.read1ByteTxRx(port, 1, 6)[0] == 46  # firmware

@@ -14,7 +14,7 @@ from robogest.data.prep import Normalization
 from robogest.errors import InputError
 from robogest.generators.base import Generator
 from robogest.learn import require_torch
-from robogest.learn.checkpoint import load_checkpoint, normalization_arrays
+from robogest.learn.checkpoint import build_model, load_checkpoint, normalization_arrays
 from robogest.speech.types import Speech
 
 
@@ -40,7 +40,7 @@ class CheckpointGenerator(Generator):
     def __init__(
         self, checkpoint: str | os.PathLike | None = None, device: str = "cpu", encoder: Any = None, **options: Any
     ) -> None:
-        torch = require_torch(f"the {self.name!r} generator")
+        require_torch(f"the {self.name!r} generator")
         if checkpoint is None:
             raise InputError(
                 f"the {self.name} generator needs --checkpoint FILE.pt; train one with "
@@ -49,8 +49,8 @@ class CheckpointGenerator(Generator):
         ckpt = load_checkpoint(checkpoint, map_location=device)
         if ckpt["model_name"] != self.name:
             raise InputError(f"{checkpoint}: a {ckpt['model_name']!r} checkpoint, not a {self.name} one")
-        model = self.net_cls(self.config_cls.from_dict(ckpt["model_config"])).to(torch.device(device))
-        model.load_state_dict(ckpt["model_state"])
+        config = self.config_cls.from_dict(ckpt["model_config"])
+        model = build_model(ckpt, lambda: self.net_cls(config), checkpoint, device)
         features = FeatureConfig.from_dict(ckpt["feature_config"])
         self.path: Path | None = Path(checkpoint)
         self._adopt(model, features, Normalization.from_dict(normalization_arrays(ckpt)), encoder, options)

@@ -1,0 +1,328 @@
+"""Bring-up of a real servo bus: find the servos (scan) and check what commonly breaks a bus (doctor).
+
+Both work below the robot abstraction on a :class:`ServoLink` (one port, one protocol, one baud rate,
+exclusively opened), because the point is to find out what the bus really holds before a robot YAML can
+be trusted. Ticks and raw register values appear here; joint radians only where a robot is given.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from enum import Enum
+from pathlib import Path
+from typing import Any
+
+from robogest.backends.servo_common import close_port, open_port_exclusive
+from robogest.errors import BackendError, InputError
+
+#: Protocols in the order they are tried: the most common first, Protocol 1.0 (no usable broadcast ping) last.
+PROTOCOLS = ("dxl2", "sts", "scs", "dxl1")
+#: Baud rates per protocol, the factory defaults and the most common settings first.
+COMMON_BAUDS = {
+    "dxl2": (57_600, 1_000_000, 115_200, 2_000_000, 3_000_000, 4_000_000, 9_600),
+    "sts": (1_000_000, 500_000, 115_200, 57_600, 250_000, 128_000, 38_400, 19_200),
+    "scs": (1_000_000, 500_000, 115_200, 57_600, 250_000, 128_000, 38_400, 19_200),
+    "dxl1": (1_000_000, 57_600, 115_200, 9_600, 2_000_000),
+}
+FAMILY = {"dxl2": ("dynamixel", 2.0), "dxl1": ("dynamixel", 1.0), "sts": ("feetech", 0.0), "scs": ("feetech", 1.0)}
+
+
+def protocol_name(family: str, protocol: float) -> str:
+    """``("feetech", 0)`` -> ``"sts"`` (the names ``servo`` subcommands take)."""
+    for name, fp in FAMILY.items():
+        if fp == (family, float(protocol)):
+            return name
+    raise InputError(f"no servo protocol for family {family!r} protocol {protocol:g}")
+
+
+class ServoLink:
+    """A port opened with one vendor SDK for one protocol at one baud rate (exclusively)."""
+
+    def __init__(self, port: str, protocol: str, baud: int) -> None:
+        if protocol not in FAMILY:
+            raise InputError(f"unknown servo protocol {protocol!r}; one of {', '.join(FAMILY)}")
+        self.protocol, self.port_name, self.baud = protocol, port, baud
+        if protocol.startswith("dxl"):
+            import dynamixel_sdk as sdk
+
+            self.ph = sdk.PacketHandler(2.0 if protocol == "dxl2" else 1.0)
+        else:
+            import scservo_sdk as sdk
+
+            sdk.SCS_SETEND(0 if protocol == "sts" else 1)
+            self.ph = sdk.PacketHandler(0 if protocol == "sts" else 1)
+        self.sdk = sdk
+        self.port = open_port_exclusive(sdk, port, baud)
+
+    def close(self) -> None:
+        close_port(self.port)
+
+    def __enter__(self) -> ServoLink:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def registers(self) -> Any:
+        from robogest.backends.dynamixel_tables import P1Reg, XReg
+        from robogest.backends.feetech_tables import SCSReg, STSReg
+
+        return {"dxl2": XReg, "dxl1": P1Reg, "sts": STSReg, "scs": SCSReg}[self.protocol]
+
+    def reg(self, *names: str) -> Enum:
+        """The first of ``names`` this protocol's table has."""
+        regs = self.registers()
+        return next(regs[n] for n in names if n in regs.__members__)
+
+    def ok(self, comm: int) -> bool:
+        return comm == self.sdk.COMM_SUCCESS
+
+    def model_name(self, number: int) -> str:
+        from robogest.backends.dynamixel_tables import MODELS as DM
+        from robogest.backends.feetech_tables import MODELS as FM
+
+        models = DM.values() if self.protocol.startswith("dxl") else FM.values()
+        return next((m.name for m in models if m.number == number), "?")
+
+    def _prep(self) -> None:
+        if self.protocol in ("sts", "scs"):
+            self.sdk.SCS_SETEND(0 if self.protocol == "sts" else 1)
+        self.port.is_using = False
+        self.port.ser.reset_input_buffer()
+
+    def read(self, sid: int, reg: Enum, attempts: int = 3) -> int:
+        """One register (unsigned raw value); raises :class:`BackendError` naming the servo and register."""
+        addr, size = reg.value
+        for _ in range(attempts):
+            self._prep()
+            data, comm, _ = self.ph.readTxRx(self.port, sid, addr, size)
+            if self.ok(comm) and len(data) == size:
+                return int.from_bytes(bytes(data), "big" if self.protocol == "scs" else "little")
+        raise BackendError(f"servo id {sid}: reading {reg.name}: {self.ph.getTxRxResult(comm)}")
+
+    def write(self, sid: int, reg: Enum, value: int, attempts: int = 3) -> int:
+        """One register; returns the status error byte."""
+        addr, size = reg.value
+        data = list(int(value).to_bytes(size, "big" if self.protocol == "scs" else "little"))
+        for _ in range(attempts):
+            self._prep()
+            comm, err = self.ph.writeTxRx(self.port, sid, addr, size, data)
+            if self.ok(comm):
+                return int(err)
+        raise BackendError(f"servo id {sid}: writing {reg.name}: {self.ph.getTxRxResult(comm)}")
+
+    def write_eeprom(self, sid: int, reg: Enum, value: int) -> None:
+        """An EEPROM write that sticks: torque off first; on Feetech, Lock opened for it and restored after."""
+        self.write(sid, self.reg("TORQUE_ENABLE"), 0)
+        lock = self.reg("LOCK") if "LOCK" in self.registers().__members__ else None
+        was = self.read(sid, lock) if lock is not None else None
+        if lock is not None and was:
+            self.write(sid, lock, 0)
+        try:
+            err = self.write(sid, reg, value)
+        finally:
+            if lock is not None and was:
+                self.write(sid, lock, was)
+        if err:
+            raise BackendError(f"servo id {sid}: {reg.name} refused value {value} (error byte 0x{err:02X})")
+
+    def broadcast_ping(self, max_id: int = 252) -> list[int]:
+        """Ids that answer one broadcast PING, in one round trip (each servo answers in its own time slot).
+
+        Waits for ids up to ``max_id``: 3 ms per id on Dynamixel 2.0 (as the SDK allows), 1 ms elsewhere, + 50 ms.
+        """
+        self._prep()
+        if self.protocol == "dxl2":
+            pkt = [0] * 10
+            pkt[4], pkt[5], pkt[6], pkt[7] = 0xFE, 3, 0, 1  # id, length, instruction PING
+            wait_ms = 3.0 * max_id + 50.0
+        else:
+            pkt = [0] * 6
+            pkt[2], pkt[3], pkt[4] = 0xFE, 2, 1
+            wait_ms = 1.0 * max_id + 50.0
+        if not self.ok(self.ph.txPacket(self.port, pkt)):
+            raise BackendError(f"cannot write to {self.port_name}")
+        id_at = 4 if self.protocol == "dxl2" else 2
+        found: set[int] = set()
+        t_end = time.monotonic() + wait_ms / 1000.0
+        while time.monotonic() < t_end:
+            self.port.setPacketTimeoutMillis(max(1.0, (t_end - time.monotonic()) * 1000.0))
+            rx = self.ph.rxPacket(self.port, False) if self.protocol == "dxl2" else self.ph.rxPacket(self.port)
+            pkt_in, comm = rx
+            self.port.is_using = False
+            if self.ok(comm) and len(pkt_in) > id_at:
+                found.add(int(pkt_in[id_at]))
+            elif not pkt_in:
+                break  # nothing more within the wait
+        return sorted(found)
+
+    def ping_each(self, ids: range, timeout_ms: float) -> list[int]:
+        """Ids that answer a read of their Model Number, asked one by one with a short timeout."""
+        model = self.reg("MODEL_NUMBER")
+        found = []
+        for sid in ids:
+            self._prep()
+            if not self.ok(self.ph.readTx(self.port, sid, *model.value)):
+                continue
+            self.port.setPacketTimeoutMillis(timeout_ms)
+            _, comm = self.ph.rxPacket(self.port, False) if self.protocol == "dxl2" else self.ph.rxPacket(self.port)
+            self.port.is_using = False
+            if self.ok(comm):
+                found.append(sid)
+        return found
+
+
+def baud_register_value(protocol: str, baud: int) -> int:
+    """The Baud Rate register value that selects ``baud``."""
+    from robogest.backends.dynamixel_tables import X_BAUDRATES
+    from robogest.backends.feetech_tables import FT_BAUDRATES
+
+    if protocol == "dxl1":
+        return round(2_000_000 / baud - 1)  # AX/MX: baud = 2 Mbps / (value + 1)
+    table = X_BAUDRATES if protocol == "dxl2" else FT_BAUDRATES
+    value = next((v for v, b in table.items() if b == baud), None)
+    if value is None:
+        rates = ", ".join(map(str, table.values()))
+        raise InputError(f"{protocol} servos cannot be set to {baud} baud; one of {rates}")
+    return value
+
+
+def set_baud(port: str, protocol: str, sid: int, old_baud: int, new_baud: int) -> None:
+    """Move one servo from ``old_baud`` to ``new_baud`` (torque off; a Feetech Lock is restored at the new rate)."""
+    value = baud_register_value(protocol, new_baud)
+    with ServoLink(port, protocol, old_baud) as link:
+        link.write(sid, link.reg("TORQUE_ENABLE"), 0)
+        lock = link.reg("LOCK") if "LOCK" in link.registers().__members__ else None
+        was = link.read(sid, lock) if lock is not None and protocol in ("sts", "scs") else 0
+        if was:
+            link.write(sid, lock, 0)
+        link.write(sid, link.reg("BAUD_RATE"), value, attempts=1)  # the reply may already come at the new rate
+    time.sleep(0.05)
+    with ServoLink(port, protocol, new_baud) as link:
+        link.read(sid, link.reg("MODEL_NUMBER"))  # answers at the new rate, or raises naming the servo
+        if was and lock is not None:
+            link.write(sid, lock, was)
+
+
+@dataclass
+class FoundServo:
+    """One servo that answered a scan. Limits in ticks, as stored in the servo."""
+
+    protocol: str
+    baud: int
+    id: int
+    model_number: int
+    model: str
+    firmware: int
+    return_delay_us: float
+    min_position_tick: int
+    max_position_tick: int
+
+    def line(self) -> str:
+        return (
+            f"{self.protocol:4s} {self.baud:8d} baud  id {self.id:3d}  {self.model} ({self.model_number})  "
+            f"firmware {self.firmware}  return delay {self.return_delay_us:.0f} us  "
+            f"limits [{self.min_position_tick}, {self.max_position_tick}] ticks"
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def describe(link: ServoLink, sid: int) -> FoundServo:
+    """Read what a scan reports about one servo."""
+    number = link.read(sid, link.reg("MODEL_NUMBER"))
+    fw = link.read(sid, link.reg("FIRMWARE_VERSION", "FIRMWARE_MAJOR_VERSION"))
+    rdt = link.read(sid, link.reg("RETURN_DELAY_TIME"))
+    lo = link.read(sid, link.reg("MIN_POSITION_LIMIT", "CW_ANGLE_LIMIT"))
+    hi = link.read(sid, link.reg("MAX_POSITION_LIMIT", "CCW_ANGLE_LIMIT"))
+    return FoundServo(link.protocol, link.baud, sid, number, link.model_name(number), fw, 2.0 * rdt, lo, hi)
+
+
+def scan(
+    port: str,
+    protocols: list[str] | None = None,
+    bauds: list[int] | None = None,
+    *,
+    max_id: int = 252,
+    per_id: bool = False,
+    timeout_ms: float = 10.0,
+    progress: Callable[[int, int, str], None] | None = None,
+    all_protocols: bool = False,
+) -> list[FoundServo]:
+    """Every servo that answers on ``port``, trying each protocol at each baud rate (common ones first).
+
+    One broadcast ping per protocol and baud (Protocol 1.0, whose servos do not answer broadcasts, and
+    ``per_id`` ask ids ``0..max_id`` one by one with ``timeout_ms``, raised above the USB adapter's latency
+    timer). Protocols after the first one that answered are skipped unless ``all_protocols``.
+    ``progress(done, total, what)`` is called before each try.
+    """
+    protocols = protocols or list(PROTOCOLS)
+    tries = [(p, b) for p in protocols for b in (bauds or COMMON_BAUDS[p])]
+    found: list[FoundServo] = []
+    timer = latency_timer_path(port)  # a USB adapter holds a short reply back this long
+    latency_ms = float(timer.read_text().strip() or 0) if timer is not None else 0.0
+    for k, (proto, baud) in enumerate(tries):
+        if found and not all_protocols and proto != found[-1].protocol:
+            break  # every baud of the protocol that answered is done; one bus rarely mixes protocols
+        if progress:
+            progress(k, len(tries), f"{proto} at {baud} baud")
+        try:
+            link = ServoLink(port, proto, baud)
+        except InputError:
+            continue  # a rate this SDK cannot set
+        with link:
+            if per_id or proto == "dxl1":
+                ids = link.ping_each(range(0, max_id + 1), max(timeout_ms, latency_ms + 4.0))
+            else:
+                ids = link.broadcast_ping(max_id)
+            for sid in ids:
+                with contextlib.suppress(BackendError):
+                    found.append(describe(link, sid))
+    if progress:
+        progress(len(tries), len(tries), "done")
+    return found
+
+
+# --- doctor ------------------------------------------------------------------------------------------
+@dataclass
+class Finding:
+    """One line of ``servo doctor``: ``ok`` / ``warn`` / ``fixed`` / ``error``, what, and how to fix it."""
+
+    level: str
+    what: str
+
+    def line(self) -> str:
+        return f"{self.level:5s} {self.what}"
+
+
+def latency_timer_path(port: str) -> Path | None:
+    """The sysfs latency-timer file of a USB-serial adapter (FTDI and friends), or None for other ports."""
+    name = Path(os.path.realpath(port)).name
+    path = Path("/sys/bus/usb-serial/devices") / name / "latency_timer"
+    return path if path.exists() else None
+
+
+def check_latency_timer(port: str, fix: bool) -> Finding:
+    path = latency_timer_path(port)
+    if path is None:
+        return Finding("ok", f"latency timer: {port} is not a USB-serial adapter with one (nothing to check)")
+    ms = int(path.read_text().strip() or 0)
+    if ms <= 1:
+        return Finding("ok", f"latency timer: {ms} ms")
+    cmd = f"echo 1 | sudo tee {path}"
+    if fix:
+        try:
+            path.write_text("1\n")
+            return Finding("fixed", f"latency timer: {ms} ms -> 1 ms (lasts until the adapter is replugged)")
+        except OSError:
+            return Finding("error", f"latency timer: {ms} ms and no permission to change it; run: {cmd}")
+    return Finding(
+        "warn",
+        f"latency timer: {ms} ms (each reply waits up to {ms} ms: a read-write loop caps near "
+        f"{1000 // (2 * ms + 2)} Hz); fix: --fix, or run: {cmd}",
+    )

@@ -1,0 +1,272 @@
+"""``robogest servo doctor|calibrate|jog``: checking a real bus, measuring a robot's joints, moving one joint."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from robogest.errors import ConfigError, InputError
+
+
+def _robot_backend(name: str, port: str | None, **options: Any) -> tuple[Any, Any]:
+    import robogest.backends.dynamixel
+    import robogest.backends.feetech  # noqa: F401 - register the servo backends
+    from robogest.backends.base import get_backend_factory
+    from robogest.robot.registry import find_robot
+
+    robot = find_robot(name)
+    if robot.bus is None:
+        raise ConfigError(f"robot {robot.name!r} has no bus section; add bus: family, protocol, baudrate, servos")
+    return robot, get_backend_factory(robot.bus.family)(robot, port=port, **options)
+
+
+def _joint_index(robot: Any, joint: str) -> int:
+    if joint not in robot.joint_names:
+        raise InputError(f"robot {robot.name!r} has no joint {joint!r}; its joints: {', '.join(robot.joint_names)}")
+    return robot.joint_names.index(joint)
+
+
+# --- jog -----------------------------------------------------------------------------------------
+def jog(args: argparse.Namespace) -> int:
+    from robogest.backends.player import ramp_duration, ramp_sample
+
+    robot, backend = _robot_backend(args.robot, args.port)
+    k = _joint_index(robot, args.joint)
+    lo, hi = float(robot.q_min_rad[k]), float(robot.q_max_rad[k])
+    if not (math.isfinite(args.angle) and lo <= args.angle <= hi):
+        raise InputError(
+            f"joint {args.joint}: angle {args.angle:+.3f} rad is outside its limits [{lo:+.3f}, {hi:+.3f}] rad; "
+            "pick an angle inside them"
+        )
+    if not (0.0 < args.speed <= 1.0 and 0.0 <= args.hold <= 60.0):
+        raise InputError("--speed must lie in (0, 1] (fraction of the speed limit) and --hold in [0, 60] s")
+    period = 1.0 / 50.0
+    with backend:  # leaving: back to rest, torque off (also on Ctrl-C or an error)
+        q0 = np.clip(backend.read_positions(), robot.q_min_rad, robot.q_max_rad)
+        backend.write_goal(q0)  # hold where it is, so torque on does not jump
+        backend.set_torque(True)
+        goal = q0.copy()
+        goal[k] = args.angle
+        dur = ramp_duration(q0, goal, robot.v_max_rad_s * args.speed, robot.a_max_rad_s2 * args.speed)
+        t0 = time.monotonic()
+        while (t := time.monotonic() - t0) < dur + args.hold:  # sampled at the time it is: never bunched
+            backend.write_goal(ramp_sample(q0, goal, t, dur))
+            backend.read_positions()
+            time.sleep(max(0.0, period - (time.monotonic() - t0 - t)))
+        backend.write_goal(goal)
+        q = backend.read_positions()
+        print(f"{args.joint}: at {q[k]:+.3f} rad (goal {args.angle:+.3f} rad); back to rest, torque off")
+    return 0
+
+
+# --- calibrate -----------------------------------------------------------------------------------
+def _ask(prompt: str, sample: Any = None) -> None:
+    """Wait for Enter; meanwhile call ``sample()`` at ~20 Hz when stdin can be polled (a terminal or pipe)."""
+    import select
+
+    print(prompt, file=sys.stderr, flush=True)
+    try:
+        pollable = sample is not None and sys.stdin.fileno() >= 0
+    except (AttributeError, OSError, ValueError):
+        pollable = False
+    while pollable and not select.select([sys.stdin], [], [], 0.05)[0]:
+        sample()
+    if sys.stdin.readline() == "":
+        raise InputError("calibration needs an answer (Enter) at each step; stdin was closed")
+
+
+def calibrate(args: argparse.Namespace) -> int:
+    import yaml
+
+    from robogest.cli.checks import check_outputs
+    from robogest.fileio import atomic_path
+    from robogest.robot.config import load_robot_config
+
+    robot, backend = _robot_backend(args.robot, args.port, check_limits=False)
+    src = Path(robot.path) if robot.path is not None else None
+    if src is None:
+        raise InputError(f"robot {robot.name!r} has no YAML file to copy")
+    out = Path(args.out) if args.out else src.with_name(f"{src.stem}.calibrated.yaml")
+    if out.resolve() == src.resolve():
+        raise InputError(f"--out {out} is the robot's own YAML; calibration writes a copy, never over the original")
+    check_outputs({"--out": out}, {"--robot": src})  # before anything moves: a folder, device, unwritable path
+    joints = args.joint or robot.joint_names
+    for j in joints:
+        _joint_index(robot, j)
+    if not 0.0 <= args.margin_rad < 0.5:
+        raise InputError("--margin-rad must lie in [0, 0.5) rad")
+    measured: dict[str, dict[str, float]] = {}
+    backend.connect()
+    try:
+        backend.set_torque(False)
+        print("torque is off: move the joints by hand as asked (support the arms)", file=sys.stderr)
+        for j in joints:
+            k = robot.joint_names.index(j)
+            ticks: dict[str, float] = {}
+            seen: list[float] = []  # every reading while the joint travels to its ends
+
+            def tick_now(k: int = k) -> float:
+                return float(backend.rad_to_ticks(backend.read_positions())[k])
+
+            def sample(seen: list[float] = seen) -> None:
+                seen.append(tick_now())
+
+            for step, where in (
+                ("zero", "its zero pose (0 rad in the robot's convention)"),
+                ("upper", "its upper end (the positive direction)"),
+                ("lower", "its lower end, through its whole range"),
+            ):
+                _ask(f"{j}: move it to {where}, then press Enter", None if step == "zero" else sample)
+                ticks[step] = tick_now()
+                if step != "zero":
+                    seen.append(ticks[step])
+            measured[j] = _fit_joint(backend, k, j, ticks, seen, args.margin_rad)
+    finally:
+        backend.shutdown()
+
+    doc = yaml.safe_load(src.read_text())
+    for jd in doc["joints"]:
+        if jd["name"] in measured:
+            m = measured[jd["name"]]
+            jd["lower_rad"], jd["upper_rad"] = m["lower_rad"], m["upper_rad"]
+            jd["rest_rad"] = float(np.clip(jd.get("rest_rad", 0.0), m["lower_rad"], m["upper_rad"]))
+            servo = doc["bus"]["servos"][jd["name"]]
+            servo["zero_offset_rad"], servo["direction"] = m["zero_offset_rad"], int(m["direction"])
+    if out.parent.resolve() != src.parent.resolve():
+        doc["model"] = str((src.parent / doc["model"]).resolve())  # keep the MJCF reachable from the copy
+    with atomic_path(out) as tmp:
+        tmp.write_text(yaml.safe_dump(doc, sort_keys=False))
+    load_robot_config(out)  # the copy must load
+    for j, m in measured.items():
+        print(
+            f"{j}: zero_offset_rad {m['zero_offset_rad']:+.4f}, direction {int(m['direction']):+d}, "
+            f"limits [{m['lower_rad']:+.3f}, {m['upper_rad']:+.3f}] rad"
+        )
+    print(
+        f"wrote {out} (the original {src} is unchanged); review the copy, then "
+        f"`robogest servo doctor --port {backend.port_name} --robot {out} --fix` writes its limits into the servos"
+    )
+    return 0
+
+
+def _fit_joint(
+    backend: Any, k: int, joint: str, ticks: dict[str, float], seen: list[float], margin: float
+) -> dict[str, float]:
+    """Zero offset, direction and limits from the ticks read at the zero pose, at both ends, and on the way
+    (the furthest reading on each side is the end)."""
+    servo = backend.robot.bus.servos[joint]
+    model = backend.models[k]
+    per_rad = model.ticks_per_rev / (2 * math.pi)
+    zero = (ticks["zero"] - model.centre_tick) / per_rad
+    direction = 1.0 if ticks["upper"] >= ticks["zero"] else -1.0
+
+    def rad(tick: float) -> float:
+        return ((tick - model.centre_tick) / per_rad - zero) / (servo.gear_ratio * direction)
+
+    far_up, far_down = (max(seen), min(seen)) if direction > 0 else (min(seen), max(seen))
+    upper, lower = rad(far_up) - margin, rad(far_down) + margin
+    if not lower < 0.0 < upper:
+        raise InputError(
+            f"joint {joint}: measured range [{lower + margin:+.3f}, {upper - margin:+.3f}] rad does not hold the "
+            "zero pose with the margin inside; move it to its zero pose, then to each end, as asked"
+        )
+    return {"zero_offset_rad": round(zero, 5), "direction": direction, "lower_rad": round(lower, 4),
+            "upper_rad": round(upper, 4)}  # fmt: skip
+
+
+# --- doctor --------------------------------------------------------------------------------------
+def doctor(args: argparse.Namespace) -> int:
+    from robogest.backends.bringup import Finding, ServoLink, check_latency_timer, protocol_name, scan, set_baud
+
+    findings = [check_latency_timer(args.port, args.fix)]
+    for f in findings:
+        print(f.line())
+    expected: dict[int, tuple[str, int, int]] = {}  # id -> (joint, min tick, max tick) from the YAML
+    if args.robot:
+        robot, backend = _robot_backend(args.robot, args.port)
+        proto = protocol_name(robot.bus.family, robot.bus.protocol)
+        lo_t, hi_t = backend.rad_to_ticks(robot.q_min_rad), backend.rad_to_ticks(robot.q_max_rad)
+        for k, j in enumerate(robot.joint_names):
+            expected[int(backend.ids[k])] = (j, int(min(lo_t[k], hi_t[k])), int(max(lo_t[k], hi_t[k])))
+        bus_found = scan(args.port, [proto], [robot.bus.baudrate], max_id=max(expected))
+        for sid, (j, _, _) in expected.items():
+            if not any(f.id == sid for f in bus_found):
+                elsewhere = [f for f in scan(args.port, [proto], max_id=sid) if f.id == sid]
+                where = f"; it answers at {elsewhere[0].baud} baud" if elsewhere else ""
+                what = f"servo id {sid} (joint {j}): no answer at {robot.bus.baudrate} baud{where}"
+                if elsewhere and args.fix:
+                    set_baud(args.port, proto, sid, elsewhere[0].baud, robot.bus.baudrate)
+                    bus_found += [f for f in scan(args.port, [proto], [robot.bus.baudrate], max_id=sid) if f.id == sid]
+                    _say(findings, Finding("fixed", what + f"; moved to {robot.bus.baudrate} baud"))
+                    continue
+                _say(findings, Finding("error", what + "; set its Baud Rate register or the YAML's bus.baudrate"))
+    else:
+        bus_found = scan(args.port, args.protocol, args.baud)
+        if not bus_found:
+            _say(findings, Finding("error", f"no servo answered on {args.port}; check power and wiring"))
+    for f in bus_found:
+        with ServoLink(args.port, f.protocol, f.baud) as link:
+            for finding in _check_servo(link, f, expected.get(f.id), args.fix):
+                _say(findings, finding)
+    bad = [f for f in findings if f.level in ("warn", "error")]
+    print(f"{len(bad)} problem(s)" + ("; --fix sets what it can" if bad and not args.fix else ""))
+    return 1 if bad else 0
+
+
+def _say(findings: list[Any], f: Any) -> None:
+    findings.append(f)
+    print(f.line(), flush=True)
+
+
+def _check_servo(link: Any, f: Any, expected: tuple[str, int, int] | None, fix: bool) -> list[Any]:
+    from robogest.backends.bringup import Finding
+
+    who = f"servo id {f.id}" + (f" (joint {expected[0]})" if expected else "")
+    out = []
+    if f.return_delay_us > 0:
+        if fix:
+            link.write_eeprom(f.id, link.reg("RETURN_DELAY_TIME"), 0)
+            out.append(Finding("fixed", f"{who}: return delay {f.return_delay_us:.0f} us -> 0"))
+        else:
+            out.append(Finding("warn", f"{who}: return delay {f.return_delay_us:.0f} us before every reply; set 0"))
+    else:
+        out.append(Finding("ok", f"{who}: return delay 0"))
+    if expected is not None:
+        _, lo, hi = expected
+        smin, smax = f.min_position_tick, f.max_position_tick
+        narrower = lo < smin - 1 or hi > smax + 1
+        wider = smin < lo - 1 or smax > hi + 1
+        if narrower or wider:
+            what = (
+                f"{who}: position limits in the servo [{smin}, {smax}] ticks, the YAML's joint limits map to "
+                f"[{lo}, {hi}]" + ("; motion would be refused at connect" if narrower else "")
+            )
+            if fix:
+                link.write_eeprom(f.id, link.reg("MIN_POSITION_LIMIT", "CW_ANGLE_LIMIT"), lo)
+                link.write_eeprom(f.id, link.reg("MAX_POSITION_LIMIT", "CCW_ANGLE_LIMIT"), hi)
+                out.append(Finding("fixed", what + f"; servo limits set to [{lo}, {hi}]"))
+            else:
+                why = "" if narrower else " (the servo's own limits are a second line of defence)"
+                out.append(Finding("error" if narrower else "warn", what + f"; set them to the YAML's{why}"))
+        else:
+            out.append(Finding("ok", f"{who}: position limits [{smin}, {smax}] match the YAML"))
+    regs = link.registers().__members__
+    torque = next((n for n in ("MAX_TORQUE_LIMIT", "MAX_TORQUE", "PWM_LIMIT") if n in regs), None)
+    if torque:
+        full = 885 if torque == "PWM_LIMIT" else (1000 if link.protocol in ("sts", "scs") else 1023)
+        pct = 100.0 * link.read(f.id, regs[torque]) / full
+        level = "ok" if pct >= 50 else "warn"
+        out.append(Finding(level, f"{who}: torque limit {pct:.0f} % ({torque})" + ("" if pct >= 50 else "; weak")))
+    volt = next(regs[n] for n in ("PRESENT_INPUT_VOLTAGE", "PRESENT_VOLTAGE") if n in regs)
+    v = link.read(f.id, volt) / 10.0
+    vmin, vmax = (link.read(f.id, regs[n]) / 10.0 for n in ("MIN_VOLTAGE_LIMIT", "MAX_VOLTAGE_LIMIT"))
+    temp = link.read(f.id, regs["PRESENT_TEMPERATURE"])
+    level = "ok" if vmin <= v <= vmax and temp < 60 else "error"
+    out.append(Finding(level, f"{who}: supply {v:.1f} V (limits [{vmin:.1f}, {vmax:.1f}] V), {temp} °C"))
+    return out

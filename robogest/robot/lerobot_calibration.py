@@ -1,0 +1,172 @@
+"""Read a LeRobot calibration file into a robot YAML's servo zero offsets, directions and joint limits.
+
+LeRobot (``lerobot-calibrate``) stores one JSON per arm, under ``~/.cache/huggingface/lerobot/calibration/``::
+
+    {"shoulder_pan": {"id": 1, "drive_mode": 0, "homing_offset": -1470, "range_min": 758, "range_max": 3292}, ...}
+
+It writes ``homing_offset`` into each servo (Feetech: reported position = actual - offset), so that the pose the user
+held while calibrating reads half a turn, and records the range of motion in those offset-corrected ticks. LeRobot's
+joint angle in degrees is then ``(ticks - mid) * 360 / (resolution - 1)`` with ``mid`` the middle of the recorded
+range; ``drive_mode`` 1 marks a motor whose sign LeRobot flips.
+
+robogest reads the same offset-corrected ticks from the servo (the homing offset stays in the servo and is not
+applied again), so for a robot whose joint zero and signs are LeRobot's (the shipped ``so101_sts3215``):
+
+- ``zero_offset_rad = (mid - centre_tick) * 2 pi / ticks_per_rev`` (joint zero = LeRobot's zero, the range middle);
+- ``direction = -1`` where ``drive_mode`` is 1, else ``+1``;
+- joint limits = the recorded range, ``direction * (range - mid) * 2 pi / ticks_per_rev / gear_ratio``, intersected
+  with the YAML's limits (a calibration never widens a limit beyond the model's).
+
+robogest uses the model's ticks per revolution (4096 for an STS3215), LeRobot ``resolution - 1`` (4095): 0.02 %.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from robogest.errors import ConfigError, InputError
+from robogest.robot.config import RobotConfig
+
+_FIELDS = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
+
+
+@dataclass(frozen=True)
+class MotorCalibration:
+    """One motor of a LeRobot calibration file (ticks of the servo, after its homing offset)."""
+
+    id: int
+    drive_mode: int
+    homing_offset: int
+    range_min: int
+    range_max: int
+
+
+def read_calibration(path: str | Path) -> dict[str, MotorCalibration]:
+    """Motor name -> calibration; InputError naming the file and motor for anything that is not LeRobot's format."""
+    path = Path(path)
+    try:
+        raw = json.loads(path.read_text())
+    except OSError as e:
+        raise InputError(f"{path}: cannot read the calibration file ({e.strerror})") from None
+    except json.JSONDecodeError as e:
+        raise InputError(f"{path}: not JSON ({e.msg} at line {e.lineno}); pass a LeRobot calibration .json") from None
+    except RecursionError:
+        raise InputError(f"{path}: JSON nested too deeply to be a LeRobot calibration file") from None
+    if not isinstance(raw, dict) or not raw:
+        raise InputError(f"{path}: expected {{motor name: {{{', '.join(_FIELDS)}}}}} as LeRobot writes it")
+    out = {}
+    for motor, entry in raw.items():
+        missing = [f for f in _FIELDS if not isinstance(entry, dict) or f not in entry]
+        if missing:
+            raise InputError(f"{path}: motor {motor!r} lacks {missing}; is this a LeRobot calibration file?")
+        bad = [f for f in _FIELDS if not isinstance(entry[f], int) or isinstance(entry[f], bool)]
+        if bad:
+            raise InputError(f"{path}: motor {motor!r}: {bad} must be integers (ticks)")
+        cal = MotorCalibration(**{f: entry[f] for f in _FIELDS})
+        if not 0 <= cal.range_min < cal.range_max:
+            raise InputError(
+                f"{path}: motor {motor!r}: range_min {cal.range_min} must be >= 0 and below range_max "
+                f"{cal.range_max}; recalibrate the motor"
+            )
+        if cal.drive_mode not in (0, 1):
+            raise InputError(f"{path}: motor {motor!r}: drive_mode {cal.drive_mode} is not 0 or 1")
+        out[str(motor)] = cal
+    return out
+
+
+@dataclass
+class CalibrationImport:
+    """The YAML written and one line per change (what the calibration set, what it narrowed)."""
+
+    path: Path
+    changes: list[str]
+
+
+def import_lerobot_calibration(
+    calib_path: str | Path, robot: RobotConfig, out: str | Path | None = None, overwrite: bool = False
+) -> CalibrationImport:
+    """Write a copy of ``robot``'s YAML with the servo mapping and limits from a LeRobot calibration file.
+
+    The copy goes to ``out`` (default ``NAME_calibrated.yaml`` beside the original) and is named after its file;
+    the original is never written.
+    """
+    from robogest.backends import get_backend_factory
+
+    calib = read_calibration(calib_path)
+    src = robot.path
+    if src is None or robot.bus is None:
+        raise ConfigError(f"robot {robot.name!r} has no bus section; a calibration maps servos, add bus: first")
+    out = Path(out) if out is not None else src.with_name(f"{src.stem}_calibrated.yaml")
+    if out.resolve() == src.resolve():
+        raise InputError(f"--out {out} is the robot's own YAML; write the calibrated copy elsewhere")
+    if out.exists() and not overwrite:
+        raise InputError(f"{out} exists; choose another --out or pass --force to overwrite it")
+    raw = yaml.safe_load(src.read_text())
+    by_id = {c.id: name for name, c in calib.items()}
+    lookup = getattr(get_backend_factory(robot.bus.family), "lookup_model", None)
+    changes: list[str] = []
+    unused = set(calib)
+    for k, j in enumerate(robot.joints):
+        servo = robot.bus.servos[j.name]
+        motor = j.name if j.name in calib else by_id.get(servo.id)
+        if motor is None:
+            changes.append(f"{j.name}: not in the calibration file (no motor of that name or id {servo.id}); kept")
+            continue
+        unused.discard(motor)
+        c = calib[motor]
+        model = lookup(servo.model, robot.bus.protocol) if lookup else None
+        tpr, centre = (model.ticks_per_rev, model.centre_tick) if model else (4096, 2048)
+        if c.range_max > (model.max_tick if model else 4095):
+            raise InputError(
+                f"{calib_path}: motor {motor!r}: range_max {c.range_max} is past the {servo.model}'s "
+                f"last tick {model.max_tick if model else 4095}"
+            )
+        mid = 0.5 * (c.range_min + c.range_max)
+        rad = 2 * math.pi / tpr
+        direction = -1 if c.drive_mode else 1
+        zero = (mid - centre) * rad
+        ends = sorted(direction * (t - mid) * rad / servo.gear_ratio for t in (c.range_min, c.range_max))
+        lower, upper = max(ends[0], j.lower_rad), min(ends[1], j.upper_rad)
+        if not lower + 0.02 <= j.rest_rad <= upper - 0.02:
+            raise ConfigError(
+                f"{calib_path}: motor {motor!r}: the calibrated range [{ends[0]:.3f}, {ends[1]:.3f}] rad leaves no "
+                f"room around joint {j.name!r}'s rest pose {j.rest_rad} rad; recalibrate with the arm in"
+                " LeRobot's middle pose, or move rest_rad (and the MJCF home key)"
+            )
+        entry = raw["bus"]["servos"][j.name]
+        entry["zero_offset_rad"] = round(zero, 6)
+        entry["direction"] = direction
+        if c.id != servo.id:
+            entry["id"] = c.id
+            changes.append(f"{j.name}: servo id {servo.id} -> {c.id} (the calibration file's)")
+        raw["joints"][k]["lower_rad"] = round(lower, 6)
+        raw["joints"][k]["upper_rad"] = round(upper, 6)
+        narrowed = [
+            f"{w} {old:+.3f} -> {new:+.3f}"
+            for w, old, new in (("lower", j.lower_rad, lower), ("upper", j.upper_rad, upper))
+            if abs(new - old) > 1e-9
+        ]
+        changes.append(
+            f"{j.name}: motor {motor!r}, range middle tick {mid:g}: zero_offset_rad {zero:+.4f}, direction "
+            f"{direction:+d}" + (f"; limits narrowed to the recorded range: {', '.join(narrowed)}" if narrowed else "")
+        )
+    if unused:
+        changes.append(f"motors in the file but not in the robot, ignored: {sorted(unused)}")
+    raw["name"] = out.stem
+    raw["description"] = f"{robot.description} (calibrated from {Path(calib_path).name})".strip()
+    rel = os.path.relpath(robot.model_path, out.resolve().parent)
+    raw["model"] = Path(rel if rel.count("..") <= 2 else robot.model_path).as_posix()  # absolute when far apart
+    out.parent.mkdir(parents=True, exist_ok=True)
+    header = (
+        f"# {out.stem}: {src.name} with servo zero offsets, directions and limits from the LeRobot calibration\n"
+        f"# {Path(calib_path).name} (robogest robots import-lerobot-calibration). See {src.name} for the "
+        "comments on each value.\n"
+    )
+    out.write_text(header + yaml.safe_dump(raw, sort_keys=False, default_flow_style=None, width=120))
+    return CalibrationImport(out, changes)
