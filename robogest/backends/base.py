@@ -175,23 +175,6 @@ class Backend(ABC):
             return self.last_goal_rad
         return np.array(self.read_positions(), dtype=float)
 
-    def rest_ramp(self) -> np.ndarray:
-        """Goals ``(K, J)``, radians, one per control period, from the last goal sent to the rest pose.
-
-        A minimum-jerk move timed within the robot's velocity and acceleration limits, so every goal passes
-        the guard; empty when already at rest.
-        """
-        from robogest.backends.player import ramp_duration, ramp_sample
-
-        r = self.robot
-        rest = np.clip(r.rest_q_rad, r.q_min_rad, r.q_max_rad)
-        start = np.clip(self._goal_reference(), r.q_min_rad, r.q_max_rad)
-        dur = ramp_duration(start, rest, r.v_max_rad_s, r.a_max_rad_s2)
-        n = math.ceil(dur / self.control_period_s - 1e-9)
-        return np.array([ramp_sample(start, rest, k * self.control_period_s, dur) for k in range(1, n + 1)]).reshape(
-            n, len(rest)
-        )
-
     @abstractmethod
     def disconnect(self) -> None:
         """Release the port/simulator; must be safe to call twice."""
@@ -219,7 +202,8 @@ class Backend(ABC):
         """Advance simulated time; hardware ignores it (the player waits on the clock instead)."""
 
     def shutdown(self) -> None:
-        """Torque off and disconnect. Subclasses that can move to rest first override this."""
+        """Torque off and disconnect. Subclasses that can move to rest first
+        (:func:`~robogest.backends.control.go_to_rest`) override this."""
         try:
             self.set_torque(False)
         finally:

@@ -1,11 +1,11 @@
 """MuJoCo backend: the robot's MJCF with position-servo actuators, stepped at the model's own timestep.
 
-Two ways in:
-
 * :class:`MujocoBackend` (registered as ``"sim"``) speaks the same :class:`Backend` interface as the servo
-  buses, so the player can drive the simulator exactly like hardware (``write_goal`` + ``advance``).
-* :func:`simulate` plays a whole :class:`Trajectory` at the physics rate, measures how well the simulated
-  servos track it and optionally renders an MP4 with the speech audio muxed in.
+  buses, so the one player (:func:`~robogest.backends.player.play`, through the control loop and its online
+  limiter) drives the simulator exactly like hardware (``write_goal`` + ``advance``). It can count
+  self-contacts, pace itself to the wall clock and call observers after every physics step (video, viewer).
+* :func:`simulate` plays a whole :class:`Trajectory` through that player, measures how well the simulated
+  servos track it and optionally renders an MP4 (three-quarter camera) with the speech audio muxed in.
 """
 
 from __future__ import annotations
@@ -13,7 +13,6 @@ from __future__ import annotations
 # render first: it picks a headless OpenGL backend before mujoco is imported
 from robogest.backends import render as _render  # isort: skip
 
-import contextlib
 import os
 import time
 from collections.abc import Callable
@@ -155,7 +154,11 @@ class MujocoBackend(Backend):
     start_q_rad : ndarray [shape=(J,)], radians, optional
         Initial joint angles; default the ``home`` keyframe (the rest pose).
     record : bool
-        Keep ``(t, goal, achieved)`` after every :meth:`advance` (see :attr:`log`).
+        Keep ``(t, goal, achieved)`` at connect and after every :meth:`advance` (see :attr:`log`).
+    count_contacts : bool
+        Count physics steps in which two robot parts touch (:attr:`self_collision_s`).
+    pace : bool
+        Keep simulated time from running ahead of the wall clock (for watching it live).
     **options
         Ignored (so the CLI can pass hardware options such as ``port`` to any backend).
     """
@@ -163,11 +166,24 @@ class MujocoBackend(Backend):
     realtime = False
 
     def __init__(
-        self, robot: RobotConfig, *, start_q_rad: np.ndarray | None = None, record: bool = True, **options: object
+        self,
+        robot: RobotConfig,
+        *,
+        start_q_rad: np.ndarray | None = None,
+        record: bool = True,
+        count_contacts: bool = False,
+        pace: bool = False,
+        **options: object,
     ) -> None:
         super().__init__(robot)
         self._start = None if start_q_rad is None else np.asarray(start_q_rad, dtype=float)
         self._record = record
+        self.count_contacts = count_contacts
+        self.pace = pace
+        #: Called as ``f(model, data)`` after every physics step (video frames, the viewer).
+        self.observers: list[Callable[[mujoco.MjModel, mujoco.MjData], None]] = []
+        self.self_collision_s = 0.0  #: simulated time with two robot parts touching (with ``count_contacts``)
+        self._wall0 = 0.0
         self.sim: SimModel | None = None
         self.data: mujoco.MjData | None = None
         self._torque = True
@@ -184,8 +200,11 @@ class MujocoBackend(Backend):
         _reset_to(self.sim, self.data, self._start)
         self._goal = self.data.ctrl[self.sim.act_idx].copy()
         self._t_target = 0.0
+        self.self_collision_s = 0.0
+        self._wall0 = time.perf_counter()
         self.set_torque(True)
         self._connected()
+        self._log()
 
     def _need(self) -> tuple[SimModel, mujoco.MjData]:
         if self.sim is None or self.data is None:
@@ -218,39 +237,50 @@ class MujocoBackend(Backend):
     def advance(self, dt_s: float) -> None:
         """Step the physics by ``dt_s`` seconds (rounded to whole timesteps, with no drift over many calls)."""
         sim, data = self._need()
-        ts = sim.model.opt.timestep
+        model = sim.model
+        ts = model.opt.timestep
         self._t_target += float(dt_s)
         while data.time < self._t_target - 0.5 * ts:
-            mujoco.mj_step(sim.model, data)
+            mujoco.mj_step(model, data)
+            if self.count_contacts and _robot_contacts(sim, data):
+                self.self_collision_s += ts
+            for observe in self.observers:
+                observe(model, data)
         if not np.all(np.isfinite(data.qpos)):
             raise BackendError(f"simulation of {self.robot.name} diverged (NaN state) at t={data.time:.3f} s")
-        if self._record:
-            self._log_t.append(float(data.time))
+        if self.pace:
+            lag = data.time - (time.perf_counter() - self._wall0)
+            if lag > 0.002:
+                time.sleep(lag)
+        self._log()
+
+    def _log(self) -> None:
+        if self._record and self.sim is not None and self.data is not None:
+            self._log_t.append(float(self.data.time))
             self._log_goal.append(self._goal.copy())
-            self._log_q.append(data.qpos[sim.qpos_idx].copy())
+            self._log_q.append(self.data.qpos[self.sim.qpos_idx].copy())
 
     def disconnect(self) -> None:
         self.sim = None
         self.data = None
 
+    @property
+    def is_connected(self) -> bool:
+        return self.sim is not None
+
     def shutdown(self) -> None:
-        """Ramp to rest within the limits (as the hardware backends do), then torque off."""
+        """Glide to rest within every limit (:func:`~robogest.backends.control.go_to_rest`, as the servo backends
+        do), then torque off."""
+        from robogest.backends.control import go_to_rest
+
         try:
             if self.sim is not None and self._torque:
-                with contextlib.suppress(SafetyError):  # no guarded way to rest (started outside the limits)
-                    self._glide_to_rest()
+                go_to_rest(self)
         finally:
             if self.sim is not None:
                 super().shutdown()
             else:
                 self.disconnect()
-
-    def _glide_to_rest(self) -> None:
-        """The guarded ramp from the last goal sent to rest (as on hardware), then 0.2 s to settle."""
-        for q in self.rest_ramp():
-            self.write_goal(q, source="ramp to rest at shutdown")
-            self.advance(self.control_period_s)
-        self.advance(0.2)
 
     # --- extras for tests, the player and reports ------------------------------------------------
     @property
@@ -260,7 +290,7 @@ class MujocoBackend(Backend):
 
     @property
     def log(self) -> dict[str, np.ndarray]:
-        """Recorded ``t_s (N,)``, ``goal_rad (N, J)``, ``q_rad (N, J)`` after each :meth:`advance`."""
+        """Recorded ``t_s (N,)``, ``goal_rad (N, J)``, ``q_rad (N, J)`` at connect and after each :meth:`advance`."""
         j = len(self.joint_names)
         return {
             "t_s": np.array(self._log_t),
@@ -337,6 +367,65 @@ def _joint_order(trajectory: Trajectory, robot: RobotConfig) -> np.ndarray:
     return np.array([list(trajectory.joint_names).index(n) for n in robot.joint_names])
 
 
+def _for_robot(trajectory: Trajectory, robot: RobotConfig, hold_until_s: float) -> Trajectory:
+    """``trajectory`` in the robot's joint order, its last pose held until ``hold_until_s`` (the audio's end)."""
+    order = _joint_order(trajectory, robot)
+    q = trajectory.q_rad[:, order] if trajectory.n_frames else robot.rest_q_rad[None, :]
+    t = trajectory.t_s if trajectory.n_frames else np.zeros(1)
+    fps = trajectory.fps if trajectory.n_frames >= 2 else 50.0
+    extra = int(np.ceil((hold_until_s - float(t[-1])) * fps - 1e-9))
+    if extra > 0:
+        t = np.concatenate([t, t[-1] + np.arange(1, extra + 1) / fps])
+        q = np.vstack([q, np.repeat(q[-1:], extra, axis=0)])
+    silent = np.zeros(len(t), dtype=bool)
+    silent[: trajectory.n_frames] = trajectory.silent[: trajectory.n_frames]
+    return Trajectory(
+        t_s=t, q_rad=q, joint_names=robot.joint_names, q_min_rad=robot.q_min_rad, q_max_rad=robot.q_max_rad,
+        v_max_rad_s=robot.v_max_rad_s, a_max_rad_s2=robot.a_max_rad_s2, rest_q_rad=robot.rest_q_rad,
+        silent=silent, audio_path=trajectory.audio_path, robot=robot.name,
+    )  # fmt: skip
+
+
+class _VideoObserver:
+    """Renders a frame whenever simulated time reaches the next frame time (a :attr:`MujocoBackend.observers` entry)."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, writer: _render.VideoWriter, fps: int) -> None:
+        self.renderer = _render.make_renderer(model, writer.width, writer.height)
+        self.cam = _render.camera_id(model)
+        self.writer = writer
+        self.frame_dt = 1.0 / fps
+        self.half_step = 0.5 * float(model.opt.timestep)
+        self.next_t = 0.0
+        self.render_s = 0.0
+        self(model, data)  # the frame at t = 0
+
+    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        if data.time >= self.next_t - self.half_step:
+            t0 = time.perf_counter()
+            rgb = _render.render_frame(self.renderer, data, self.cam)
+            self.render_s += time.perf_counter() - t0
+            self.writer.add_frame(rgb)
+            self.next_t += self.frame_dt
+
+
+class _ViewerObserver:
+    """The interactive viewer, synced at about 60 Hz of simulated time; closing it only stops the display."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        from mujoco import viewer as mj_viewer
+
+        try:
+            self.viewer = mj_viewer.launch_passive(model, data)
+        except Exception as e:
+            raise MissingDependencyError(f"cannot open the MuJoCo viewer ({e}); is a display available?") from None
+        self.next_t = 0.0
+
+    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        if data.time >= self.next_t and self.viewer.is_running():
+            self.viewer.sync()
+            self.next_t = data.time + 1.0 / 60.0
+
+
 def simulate(
     trajectory: Trajectory,
     robot: RobotConfig,
@@ -344,19 +433,20 @@ def simulate(
     video_path: str | Path | None = None,
     audio: np.ndarray | None = None,
     audio_sr: int = 16000,
-    width: int = 320,
-    height: int = 240,
+    width: int = 1280,
+    height: int = 720,
     video_fps: int = 25,
     realtime: bool = False,
     view: bool = False,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Callable[[float, float], None] | None = None,
+    rate_hz: float = 50.0,
 ) -> SimReport:
-    """Play ``trajectory`` on the simulated robot and measure tracking; optionally render an MP4.
+    """Play ``trajectory`` on the simulated robot through the player and measure tracking; optionally render an MP4.
 
-    The command is re-interpolated with :meth:`Trajectory.sample` at every physics step (500 Hz for the
-    shipped models), so the servos see a smooth goal as they would from a fast bus loop. The robot starts
-    at rest in the trajectory's first pose. With audio, the run lasts until the audio ends too (holding the
-    last pose), so the video carries the whole utterance.
+    The same path as on hardware: :func:`~robogest.backends.player.play` at ``rate_hz`` (control loop, online
+    limiter, glide to rest, torque off) on a :class:`MujocoBackend` that starts at the trajectory's first pose,
+    so trajectory time equals simulated time. With audio and a video, the last pose is held until the audio
+    ends, so the video carries the whole utterance.
 
     Parameters
     ----------
@@ -364,132 +454,88 @@ def simulate(
         Joint commands ``(T, J)`` rad at times ``(T,)`` s; joint names must match ``robot`` (any order).
     robot : RobotConfig
     video_path : str or Path, optional
-        Write an H.264 MP4 here (atomically).
+        Write an H.264 MP4 here (atomically), seen by the scene's three-quarter camera.
     audio : ndarray [shape=(N,) or (N, C)], optional
         Speech to mux into the video, float in [-1, 1] or int16, at ``audio_sr`` Hz.
     audio_sr : int
         Audio sample rate, Hz.
     width, height : int
-        Video frame size, pixels.
+        Video frame size, pixels (even; default 1280x720).
     video_fps : int
         Video frame rate.
     realtime : bool
         Pace the simulation to the wall clock (implied by ``view``).
     view : bool
         Show the interactive MuJoCo viewer (needs a display).
-    progress : callable(done, total), optional
-        Called as the run advances (``done`` of ``total`` physics steps).
+    progress : callable(t_s, duration_s), optional
+        Called every control tick while the trajectory plays.
+    rate_hz : float
+        Control rate of the player, Hz.
 
     Returns
     -------
     SimReport
+        Tracking of the trajectory (not of the limiter's goals) by the simulated joints.
     """
+    from robogest.backends.player import play
+
     t_wall0 = time.perf_counter()
-    order = _joint_order(trajectory, robot)
-    q_cmd = trajectory.q_rad[:, order] if trajectory.n_frames else np.zeros((0, len(robot.joints)))
-    if not np.all(np.isfinite(q_cmd)):
-        raise SafetyError("trajectory contains NaN/inf commands; refusing to simulate")
     if view and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise MissingDependencyError(
             "the MuJoCo viewer needs a display (DISPLAY is not set); run without --view, or render a video instead"
         )
+    audio_s = len(audio) / float(audio_sr) if video_path is not None and audio is not None and len(audio) else 0.0
+    traj = _for_robot(trajectory, robot, audio_s)
+    if not np.all(np.isfinite(traj.q_rad)):
+        raise SafetyError("trajectory contains NaN/inf commands; refusing to simulate")
 
-    backend = MujocoBackend(robot, start_q_rad=q_cmd[0] if len(q_cmd) else None, record=False)
+    backend = MujocoBackend(robot, start_q_rad=traj.q_rad[0], count_contacts=True, pace=realtime or view)
     backend.connect()
-    backend.set_control_rate(1.0 / backend.sim.model.opt.timestep)  # a guarded goal every physics step
-    sim, data = backend._need()
-    model = sim.model
-    ts = float(model.opt.timestep)
-
-    duration = trajectory.duration_s
-    if video_path is not None and audio is not None and len(audio):
-        duration = max(duration, len(audio) / float(audio_sr))
-    n_steps = round(duration / ts)
-    t_samples = trajectory.t_s
-    q_ach = np.zeros_like(q_cmd)
-    k_next = 0
-
-    writer = renderer = viewer = None
-    cam = -1
-    frame_dt = 1.0 / video_fps
-    next_frame_t = 0.0
-    render_s = 0.0
-    if video_path is not None:
-        renderer = _render.make_renderer(model, width, height)
-        cam = _render.camera_id(model)
-        writer = _render.VideoWriter(video_path, width, height, video_fps, audio, audio_sr)
-    if view:
-        from mujoco import viewer as mj_viewer
-
-        try:
-            viewer = mj_viewer.launch_passive(model, data)
-        except Exception as e:
-            raise MissingDependencyError(f"cannot open the MuJoCo viewer ({e}); is a display available?") from None
-    pace = realtime or view
-    collide_steps = 0
-    every = max(1, n_steps // 200)
+    model, data = backend._need()[0].model, backend.data
+    writer = video = viewer = None
+    out_path = None
     try:
-        for step in range(n_steps + 1):
-            t = step * ts
-            # record samples whose time has come (before stepping: state at time t)
-            while k_next < len(t_samples) and t_samples[k_next] <= t + 0.5 * ts:
-                q_ach[k_next] = data.qpos[sim.qpos_idx]
-                k_next += 1
-            if writer is not None and renderer is not None and t >= next_frame_t - 0.5 * ts:
-                t0 = time.perf_counter()
-                rgb = _render.render_frame(renderer, data, cam)
-                render_s += time.perf_counter() - t0
-                writer.add_frame(rgb)
-                next_frame_t += frame_dt
-            if viewer is not None and step % max(1, round(1 / (60 * ts))) == 0:
-                if not viewer.is_running():
-                    break
-                viewer.sync()
-            if pace:
-                lag = t - (time.perf_counter() - t_wall0)
-                if lag > 0.002:
-                    time.sleep(lag)
-            if progress is not None and (step % every == 0 or step == n_steps):
-                progress(step, n_steps)
-            if step == n_steps:
-                break
-            goal = trajectory.sample(t)[order] if trajectory.n_frames else robot.rest_q_rad
-            backend.write_goal(goal, source=f"trajectory for {trajectory.robot or robot.name}")
-            mujoco.mj_step(model, data)
-            if _robot_contacts(sim, data):
-                collide_steps += 1
-            if not np.all(np.isfinite(data.qpos)):
-                raise BackendError(f"simulation of {robot.name} diverged (NaN state) at t={data.time:.3f} s")
-        while k_next < len(t_samples):  # samples after an early stop (viewer closed): last state
-            q_ach[k_next] = data.qpos[sim.qpos_idx]
-            k_next += 1
-        out_path = writer.close() if writer is not None else None
-        writer_frames = writer.n_frames if writer is not None else 0
-        writer = None
-    finally:
+        if video_path is not None:
+            writer = _render.VideoWriter(video_path, width, height, video_fps, audio, audio_sr)
+            video = _VideoObserver(model, data, writer, video_fps)
+            backend.observers.append(video)
+        if view:
+            viewer = _ViewerObserver(model, data)
+            backend.observers.append(viewer)
+        rep = play(traj, backend, rate_hz=rate_hz, progress=progress)
         if writer is not None:
+            out_path = writer.close()
+    finally:
+        if writer is not None and out_path is None:
             writer.abort()
-        if renderer is not None:
-            renderer.close()
+        if video is not None:
+            video.renderer.close()
         if viewer is not None:
-            viewer.close()
-        backend.disconnect()
+            viewer.viewer.close()
+        backend.shutdown()
 
+    log = backend.log
+    t0 = rep.ramp_in_s  # simulated time at which trajectory time 0 was played (0: the sim starts there)
+    n = trajectory.n_frames
+    q_cmd = traj.q_rad[:n]
+    q_ach = np.stack([np.interp(traj.t_s[:n] + t0, log["t_s"], log["q_rad"][:, j]) for j in range(q_cmd.shape[1])], 1)
     err_deg = np.degrees(q_ach - q_cmd)
     rms = np.sqrt(np.mean(err_deg**2, axis=0)) if len(err_deg) else np.zeros(len(robot.joints))
+    n_frames = writer.n_frames if writer is not None else 0
     return SimReport(
-        t_s=t_samples.copy(),
+        t_s=traj.t_s[:n].copy(),
         q_cmd_rad=q_cmd,
         q_achieved_rad=q_ach,
         joint_names=robot.joint_names,
         tracking_rms_deg=rms,
         tracking_rms_deg_overall=float(np.sqrt(np.mean(err_deg**2))) if err_deg.size else 0.0,
         max_abs_error_deg=float(np.max(np.abs(err_deg))) if err_deg.size else 0.0,
-        self_collision_s=collide_steps * ts,
+        self_collision_s=backend.self_collision_s,
         video_path=out_path,
-        n_video_frames=writer_frames,
-        render_s_per_frame=render_s / writer_frames if writer_frames else 0.0,
+        n_video_frames=n_frames,
+        render_s_per_frame=video.render_s / n_frames if video is not None and n_frames else 0.0,
         wall_s=time.perf_counter() - t_wall0,
+        extra={"playback": rep},
     )
 
 

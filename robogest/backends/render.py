@@ -36,8 +36,10 @@ from robogest.fileio import atomic_path, check_output_path, publish, write_error
 if TYPE_CHECKING:
     from robogest.robot.config import RobotConfig
 
-#: Name of the camera every scene defines for video (looks at the robot from +X).
-CAMERA = "front"
+#: Camera for videos: a three-quarter view (strokes towards the listener at +X show); scenes without it use
+#: ``FRONT_CAMERA`` (straight on from +X), then MuJoCo's free camera.
+CAMERA = "three_quarter"
+FRONT_CAMERA = "front"
 
 _INSTALL_HINT = (
     "install an OpenGL backend for headless rendering, e.g. `apt-get install libegl1 libgl1-mesa-dri` (EGL) "
@@ -76,9 +78,10 @@ def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Rend
         ) from None
 
 
-def camera_id(model: mujoco.MjModel) -> int:
-    """Id of the ``front`` camera, or -1 (MuJoCo's free camera) when the scene has none."""
-    return int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, CAMERA))
+def camera_id(model: mujoco.MjModel, name: str = CAMERA) -> int:
+    """Id of camera ``name`` (default the three-quarter view), else of ``front``, else -1 (the free camera)."""
+    cam = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name))
+    return cam if cam >= 0 else int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, FRONT_CAMERA))
 
 
 def render_frame(renderer: mujoco.Renderer, data: mujoco.MjData, camera: int) -> np.ndarray:

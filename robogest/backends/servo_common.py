@@ -20,7 +20,7 @@ import numpy as np
 
 from robogest.backends.base import Backend
 from robogest.backends.governor import Governor, GovernorConfig
-from robogest.errors import BackendError, ConfigError, InputError, RobogestError, SafetyError
+from robogest.errors import BackendError, ConfigError, InputError, RobogestError
 from robogest.robot.config import RobotConfig
 
 #: Result of one raw SDK transaction: (value, ok, error byte, comm description).
@@ -692,17 +692,19 @@ class ServoBackend(Backend):
             self._close()
 
     def shutdown(self) -> None:
-        """Ramp to rest (if torque is on and the port answers), then torque off, then close. Idempotent."""
+        """Glide to rest (if torque is on and the port answers; :func:`~robogest.backends.control.go_to_rest`),
+        then torque off, then close. Idempotent."""
         if self._shut_down:
             return
         self._shut_down = True
         problems: list[str] = []
         try:
             if self.is_connected and self.torque_enabled and not self.port_lost:
-                try:
-                    self._ramp_to_rest()
-                except (BackendError, SafetyError) as e:  # torque still goes off below
-                    problems.append(str(e))
+                from robogest.backends.control import go_to_rest
+
+                problem = go_to_rest(self)
+                if problem:
+                    problems.append(problem)
         finally:
             try:
                 if self.is_connected and not self.port_lost:
@@ -716,13 +718,6 @@ class ServoBackend(Backend):
             finally:
                 self.disconnect()
         self.events.extend(f"shutdown: {p}" for p in problems)
-
-    def _ramp_to_rest(self) -> None:
-        """From the last goal sent to rest, one guarded goal per control period, paced by the clock."""
-        t0 = time.monotonic()
-        for k, q in enumerate(self.rest_ramp()):
-            time.sleep(max(0.0, t0 + k * self.control_period_s - time.monotonic()))
-            self.write_goal(q, source="ramp to rest at shutdown")
 
     # --- health ----------------------------------------------------------------------------------
     def _maybe_check_health(self) -> None:

@@ -1,8 +1,9 @@
 """``robogest`` command line: one subcommand module per area, each exposing ``register(subparsers)``.
 
 Exit codes: 0 success; 1 other robogest error; 2 bad input (file, flag, transcript); 3 bad robot/config
-file; 4 safety refusal; 5 hardware or simulator failure; 6 missing optional dependency; 130 Ctrl-C;
-141 stdout closed early (``robogest ... | head``), quietly, as a command killed by SIGPIPE would.
+file; 4 safety refusal; 5 hardware or simulator failure; 6 missing optional dependency; 130 Ctrl-C
+(SIGINT), 143 SIGTERM, 129 SIGHUP; 141 stdout closed early (``robogest ... | head``), quietly, as a command killed
+by SIGPIPE would.
 
 When stdout is not a terminal it is line-buffered (each line reaches the pipe when printed) and tables are
 printed as tab-separated lines; ``--json`` on the listing commands prints JSON.
@@ -11,6 +12,7 @@ printed as tab-separated lines; ``--json`` on the listing commands prints JSON.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import io
 import os
@@ -35,7 +37,8 @@ EPILOG = """exit codes:
   4  safety refusal (e.g. NaN from a generator)
   5  hardware or simulator failure (servo missing, in error, port lost); torque was turned off
   6  optional dependency missing (the message says what to install)
-  130 interrupted (Ctrl-C); the robot was sent to rest and torque turned off
+  130 interrupted (Ctrl-C / SIGINT), 143 SIGTERM, 129 SIGHUP (terminal closed): the robot was sent to rest
+      and torque turned off (the message says if rest could not be reached)
   141 stdout closed before the output ended (e.g. `| head`); ends quietly
 
 When stdout is a pipe or file: tables are tab-separated lines, each line is written as soon as it is
@@ -138,9 +141,10 @@ def _run(argv: Sequence[str] | None) -> int:
     except RobogestError as e:
         print(f"robogest: error: {e}", file=sys.stderr)
         return e.exit_code
-    except KeyboardInterrupt:
-        print("robogest: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:  # Ctrl-C, or SIGINT/SIGTERM/SIGHUP during motion (robogest.backends.control)
+        with contextlib.suppress(OSError):  # after SIGHUP the terminal may be gone
+            print(f"robogest: {e if str(e) else 'interrupted'}", file=sys.stderr)
+        return int(getattr(e, "exit_code", 130))
     except MemoryError:
         print("robogest: error: out of memory; the input is too large for this machine", file=sys.stderr)
         return 1

@@ -28,8 +28,9 @@ SPEAK_EPILOG = """examples:
 
 With --backend sim (the default) nothing moves but the MuJoCo model; with dynamixel/feetech the robot's
 bus section gives ids and models, --port/--baud override it. Every command goes through the safety layer
-(joint limits, velocity and acceleration limits, rest in silent pauses); on a crash, Ctrl-C or SIGTERM
-the robot is sent to rest and torque is turned off.
+(joint limits, velocity and acceleration limits, rest in silent pauses) and, at the control rate (--fps),
+the online limiter (position, velocity, acceleration and jerk); on a crash, Ctrl-C, SIGTERM or SIGHUP the
+robot glides to rest and torque is turned off.
 """
 
 
@@ -49,7 +50,11 @@ def _add_output_args(p: argparse.ArgumentParser) -> None:
         help="also write the command trajectory for other tools: FILE.mcap (ROS 2 bag), FILE.csv, or a "
         "name without suffix (ROS 2 bag folder); times on the speech audio's clock",
     )
-    p.add_argument("--video", metavar="FILE.mp4", help="render the simulated robot with the speech audio (sim)")
+    p.add_argument(
+        "--video", metavar="FILE.mp4", help="render the simulated robot with the speech audio (sim; three-quarter view)"
+    )
+    p.add_argument("--video-size", metavar="WxH", type=_video_size, default=(1280, 720),
+                   help="video frame size in pixels, even numbers (default: 1280x720)")  # fmt: skip
     p.add_argument("--plot", metavar="FILE.png", help="plot wrist trajectories, beats, silent spans, joint commands")
     p.add_argument("--realtime", action="store_true", help="run the simulation in real time (sim)")
     p.add_argument("--view", action="store_true", help="open the MuJoCo viewer (needs a display)")
@@ -101,6 +106,15 @@ def _check_paths(args: argparse.Namespace, inputs: dict[str, str | None]) -> Non
     checks.check_outputs(outputs, {**inputs, "--robot": robot_file})
 
 
+def _video_size(text: str) -> tuple[int, int]:
+    """``WxH`` -> (width, height); argparse turns the ValueError into a usage error naming the option."""
+    w, sep, h = text.lower().partition("x")
+    ok = sep and w.isdigit() and h.isdigit()
+    if not ok or not (16 <= int(w) <= 4096 and 16 <= int(h) <= 4096) or int(w) % 2 or int(h) % 2:
+        raise argparse.ArgumentTypeError(f"{text!r}: use WIDTHxHEIGHT in even pixels from 16 to 4096, e.g. 1280x720")
+    return int(w), int(h)
+
+
 def _backend_options(args: argparse.Namespace) -> dict:
     return {"port": args.port, "baudrate": args.baud}
 
@@ -130,10 +144,12 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
     if args.backend == "sim":
         from robogest.backends.mujoco_sim import simulate
 
+        width, height = args.video_size
         with progress_bar("simulating" + (" + rendering" if args.video else "")) as cb:
             rep = simulate(
                 traj, robot, video_path=args.video, audio=audio, audio_sr=sr, realtime=args.realtime,
-                view=args.view, progress=cb,
+                view=args.view, progress=lambda t, d: cb(round(t, 1), round(d, 1)), rate_hz=args.fps,
+                width=width, height=height,
             )  # fmt: skip
         print(f"sim tracking error: RMS {rep.tracking_rms_deg_overall:.2f} deg, max {rep.max_abs_error_deg:.2f} deg")
         if args.video:
@@ -144,7 +160,10 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
 
         backend = get_backend_factory(args.backend)(robot, **_backend_options(args))
         with progress_bar("playing") as cb:
-            rep = play(traj, backend, rate_hz=args.fps, audio=audio, audio_sr=sr, progress=cb)
+            rep = play(
+                traj, backend, rate_hz=args.fps, audio=audio, audio_sr=sr,
+                progress=lambda t, d: cb(round(t, 1), round(d, 1)),
+            )  # fmt: skip
         print(
             f"played {rep.n_ticks} ticks; period p50 {rep.p50_period_ms:.2f} ms, p99 {rep.p99_period_ms:.2f} ms, "
             f"late ticks {rep.late_ticks}, bus retries {rep.retries}, missed reads {rep.missed_reads}"

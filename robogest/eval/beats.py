@@ -345,6 +345,12 @@ def stroke_sync(
     Unlike scoring peaks against the beats a generator placed its strokes on, this is not circular:
     ``onsets_s`` should come from :func:`audio_onsets`.
 
+    Validation status (issue 13 §1, ``benchmarks/diag_stroke_sync.py``): on the shared 63 s BEAT2 take the
+    measure behaves correctly under the null (shifted copies score |z| median 0.7, max 1.9) but the aligned
+    motion capture scores at chance too (z = -0.7). Speech and motion are aligned (jaw speed follows loudness
+    at +0.03 s) and the kinematics are right, yet this speaker's wrist speed shows no onset-locked timing in
+    any principled variant tried, so the measure is not yet validated on real data.
+
     Parameters
     ----------
     wrist_pos : ndarray [shape=(T, W, 3)], metres

@@ -23,6 +23,9 @@ HUMAN_POINTS = (
     "r_collar", "r_shoulder", "r_elbow", "r_wrist", "r_hand",
 )  # fmt: skip
 
+#: Default jerk limit rule: the acceleration limit is reached from zero in this many seconds.
+JERK_RISE_S = 0.05
+
 
 class _Strict(BaseModel):
     # allow_inf_nan=False: every number in a robot file (limits, rest, speeds, offsets, gear ratios, retarget
@@ -39,6 +42,17 @@ class JointConfig(_Strict):
     max_velocity_rad_s: float = Field(gt=0)
     max_acceleration_rad_s2: float = Field(gt=0)
     rest_rad: float = 0.0
+    #: Jerk limit, rad/s³; default ``max_acceleration_rad_s2 / JERK_RISE_S`` (see :attr:`jerk_rad_s3`).
+    max_jerk_rad_s3: float | None = Field(default=None, gt=0)
+
+    @property
+    def jerk_rad_s3(self) -> float:
+        """The jerk limit in force: the YAML's, or by default the acceleration limit reached from zero in
+        :data:`JERK_RISE_S` (50 ms, 2.5 ticks at 50 Hz): no step in acceleration reaches the servos, and a stop
+        from full speed takes only about 50 ms longer than without a jerk limit."""
+        if self.max_jerk_rad_s3 is not None:
+            return self.max_jerk_rad_s3
+        return self.max_acceleration_rad_s2 / JERK_RISE_S
 
     @model_validator(mode="after")
     def _check(self) -> JointConfig:
@@ -154,6 +168,11 @@ class RobotConfig(_Strict):
     @property
     def a_max_rad_s2(self) -> np.ndarray:
         return np.array([j.max_acceleration_rad_s2 for j in self.joints])
+
+    @property
+    def j_max_rad_s3(self) -> np.ndarray:
+        """``(J,)`` jerk limits, rad/s³: YAML ``max_jerk_rad_s3`` or the default (:attr:`JointConfig.jerk_rad_s3`)."""
+        return np.array([j.jerk_rad_s3 for j in self.joints])
 
     @property
     def rest_q_rad(self) -> np.ndarray:

@@ -81,6 +81,13 @@ class Trajectory:
         w = k - i0
         return (1 - w) * self.q_rad[i0] + w * self.q_rad[i1]
 
+    def sample_velocity(self, t_s: float) -> np.ndarray:
+        """Velocity ``(J,)`` rad/s of :meth:`sample` at ``t_s``: the slope of the segment there (0 at the ends)."""
+        if self.n_frames < 2 or t_s < 0 or t_s >= self.duration_s:
+            return np.zeros(self.q_rad.shape[1])
+        i0 = min(int(np.floor(t_s * self.fps)), self.n_frames - 2)
+        return (self.q_rad[i0 + 1] - self.q_rad[i0]) * self.fps
+
     def save(self, path: str | Path) -> None:
         """Write an ``.npz`` atomically (a crash never leaves a half-written file)."""
         arrays = {k: getattr(self, k) for k in _ARRAY_KEYS}

@@ -585,7 +585,9 @@ class VirtualBus:
         Returns
         -------
         dict
-            ``t_s (N,)`` seconds since start; ``servo_ids (S,)``; ``goal_ticks (N, S)``,
+            ``t_s (N,)`` seconds since start; ``t0_monotonic_s`` () the bus clock's zero on
+            ``time.monotonic()`` (so ``t0_monotonic_s + t_s`` lines samples up with a client's own stamps);
+            ``servo_ids (S,)``; ``goal_ticks (N, S)``,
             ``present_ticks (N, S)`` int64; ``torque_on (N, S)`` bool; ``min_ticks (S,)``,
             ``max_ticks (S,)`` the robot's joint limits in ticks; ``errors`` one string per
             injected or detected fault.
@@ -595,6 +597,7 @@ class VirtualBus:
             n = len(self._rec["t_s"])
             return {
                 "t_s": np.array(self._rec["t_s"], dtype=np.float64),
+                "t0_monotonic_s": np.float64(self._t0),
                 "servo_ids": self._ids.copy(),
                 "goal_ticks": np.array(self._rec["goal"], dtype=np.int64).reshape(n, s),
                 "present_ticks": np.array(self._rec["present"], dtype=np.int64).reshape(n, s),

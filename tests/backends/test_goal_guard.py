@@ -360,4 +360,6 @@ def test_shutdown_outside_the_limits_turns_torque_off_without_an_unsafe_goal(tmp
         backend.shutdown()
         assert all(len(v) == 0 for v in log.ticks.values())
         assert not any(s.torque_on for s in bus.servos)
-        assert any(e.startswith("shutdown: unsafe goal") and "j0 steps" in e for e in backend.events), backend.events
+        assert any(
+            e.startswith("shutdown: could not reach rest (unsafe goal") and "j0 steps" in e for e in backend.events
+        ), backend.events

@@ -35,7 +35,7 @@ def test_five_percent_reply_faults_on_eleven_servos_complete(tmp_path, family, p
         time.sleep(0.05)  # let the recorder sample after the last write
         rec = bus.record()
         faults = injected_reply_faults(bus)
-    assert report.completed and report.n_ticks >= 3.0 * 50 / FAST
+    assert report.completed and report.n_ticks + report.skipped_slots >= 3.0 * 50 / FAST  # slots lost when late
     goals = rec["goal_ticks"]
     assert np.all(goals >= rec["min_ticks"]) and np.all(goals <= rec["max_ticks"])
     assert np.ptp(goals, axis=0).min() > 50  # every servo really moved

@@ -46,31 +46,143 @@ def test_speak_on_virtual_bus_ends_at_rest_with_torque_off(robot_name, family, c
     assert "played" in capsys.readouterr().out
 
 
-def test_ctrl_c_during_speak_exits_130_with_torque_off(monkeypatch, capsys):
-    """Ctrl-C (a real SIGINT) half a second into the spoken motion: one error line, exit code 130, the robot back
-    at rest with every servo's torque off."""
+def _signal_at(monkeypatch, signum, t_s: float = 0.5):
+    """Make Trajectory.sample raise a real ``signum`` once the motion reaches ``t_s``."""
     import signal
 
     from robogest.trajectory import Trajectory
 
     sample = Trajectory.sample
+    sent = []
 
-    def ctrl_c_at_half_second(self, t_s):
-        if t_s >= 0.5:
-            signal.raise_signal(signal.SIGINT)
-        return sample(self, t_s)
+    def sample_and_signal(self, t):
+        if t >= t_s and not sent:
+            sent.append(t)
+            signal.raise_signal(signum)
+        return sample(self, t)
 
-    monkeypatch.setattr(Trajectory, "sample", ctrl_c_at_half_second)
+    monkeypatch.setattr(Trajectory, "sample", sample_and_signal)
+
+
+def _assert_at_rest_torque_off(bus, robot) -> np.ndarray:
+    time.sleep(0.05)
+    rec = bus.record()
+    assert rec["torque_on"].any() and not any(s.torque_on for s in bus.servos)
+    backend = get_backend_factory("dynamixel")(robot, port=bus.port)
+    rest = backend.rad_to_ticks(robot.rest_q_rad)[np.argsort(backend.ids)]
+    np.testing.assert_allclose([bus.servo(int(i)).get("goal") for i in rec["servo_ids"]], rest, atol=1)
+    return rec
+
+
+@pytest.mark.parametrize(("name", "code"), [("SIGINT", 130), ("SIGTERM", 143), ("SIGHUP", 129)])
+def test_signal_during_speak_ends_at_rest_with_torque_off_and_one_line(name, code, monkeypatch, capsys):
+    """Ctrl-C, kill, or the terminal/SSH session closing half a second into the motion: one line naming the
+    signal, exit code 128 + signum, the robot back at rest with every servo's torque off."""
+    import signal
+
+    _signal_at(monkeypatch, getattr(signal, name))
+    robot = find_robot("humanoid_xl430")
+    with VirtualBus(robot) as bus:
+        rc = main(["speak", "Hello there, I wave while I talk.", "--backend", "dynamixel", "--port", bus.port])
+        _assert_at_rest_torque_off(bus, robot)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == code
+    assert err == [f"robogest: interrupted by {name}; the robot went to rest and torque is off"]
+
+
+def test_second_interrupt_during_the_glide_does_not_drop_the_arms(monkeypatch, capsys):
+    """SIGTERM, then Ctrl-C while gliding to rest: the glide goes on (already as fast as the limits allow) to
+    rest, then torque off; the goals sent stay within the per-tick velocity limit throughout."""
+    import signal
+
+    from robogest.backends.dynamixel import DynamixelBackend
+
+    _signal_at(monkeypatch, signal.SIGTERM)
+    write = DynamixelBackend.write_goal
+    after: list[np.ndarray] = []
+
+    def write_and_interrupt(self, q, **kw):
+        from robogest.backends import control
+
+        if control._SIG.fired is not None:
+            after.append(np.array(q, dtype=float))
+            if len(after) == 3:
+                signal.raise_signal(signal.SIGINT)
+        return write(self, q, **kw)
+
+    monkeypatch.setattr(DynamixelBackend, "write_goal", write_and_interrupt)
+    robot = find_robot("humanoid_xl430")
+    with VirtualBus(robot) as bus:
+        rc = main(["speak", "Hello there, I wave while I talk.", "--backend", "dynamixel", "--port", bus.port])
+        _assert_at_rest_torque_off(bus, robot)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 143 and err == ["robogest: interrupted by SIGTERM; the robot went to rest and torque is off"]
+    assert len(after) > 3  # the glide went on after the second signal
+    steps = np.abs(np.diff(np.array(after), axis=0))
+    assert np.all(steps <= robot.v_max_rad_s / 50.0 + 1e-9)
+    np.testing.assert_allclose(after[-1], robot.rest_q_rad, atol=1e-6)
+
+
+def test_interrupt_when_the_bus_is_gone_says_rest_was_not_reached(monkeypatch, capsys):
+    import signal
+
+    from robogest.backends.dynamixel import DynamixelBackend
+    from robogest.errors import BackendError
+
+    _signal_at(monkeypatch, signal.SIGTERM)
+    send = DynamixelBackend._send_goal
+
+    def send_or_fail(self, q):
+        from robogest.backends import control
+
+        if control._SIG.fired is not None:
+            raise BackendError("serial port lost while sync writing GOAL_POSITION")
+        return send(self, q)
+
+    monkeypatch.setattr(DynamixelBackend, "_send_goal", send_or_fail)
     robot = find_robot("humanoid_xl430")
     with VirtualBus(robot) as bus:
         rc = main(["speak", "Hello there, I wave while I talk.", "--backend", "dynamixel", "--port", bus.port])
         time.sleep(0.05)
-        rec = bus.record()
-        assert rc == 130 and capsys.readouterr().err.strip().splitlines() == ["robogest: interrupted"]
-        assert rec["torque_on"].any() and not any(s.torque_on for s in bus.servos)
-        backend = get_backend_factory("dynamixel")(robot, port=bus.port)
-        rest = backend.rad_to_ticks(robot.rest_q_rad)[np.argsort(backend.ids)]
-        np.testing.assert_allclose([bus.servo(int(i)).get("goal") for i in rec["servo_ids"]], rest, atol=1)
+        assert not any(s.torque_on for s in bus.servos)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 143 and len(err) == 1
+    assert err[0].startswith("robogest: interrupted by SIGTERM; the robot could not reach rest (")
+    assert "serial port lost" in err[0] and err[0].endswith("torque off attempted")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["SIGINT", "SIGHUP"])
+def test_signal_to_a_background_process_ends_at_rest(name, tmp_path):
+    """A background ``robogest speak`` (started with SIGINT ignored, as a shell's ``&`` does) gets ``name``
+    mid-motion: it still glides to rest, turns torque off, prints one line and exits with 128 + signum."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    robot = find_robot("humanoid_xl430")
+    text = "Hello there, this is a long sentence, so I keep waving my arms while I am talking to you."
+    with VirtualBus(robot) as bus:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "robogest", "speak", text, "--backend", "dynamixel", "--port", bus.port],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN), env={**os.environ},
+        )  # fmt: skip
+        try:
+            deadline = time.monotonic() + 120
+            while not bus.record()["torque_on"].any():  # wait until it moves
+                assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+                time.sleep(0.1)
+            time.sleep(0.8)
+            proc.send_signal(getattr(signal, name))
+            _, err = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        _assert_at_rest_torque_off(bus, robot)
+    assert proc.returncode == 128 + getattr(signal, name)
+    assert err.strip().splitlines() == [f"robogest: interrupted by {name}; the robot went to rest and torque is off"]
 
 
 def test_speak_with_five_percent_faults_finishes_safely(capsys):

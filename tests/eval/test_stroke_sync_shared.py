@@ -15,7 +15,8 @@ from robogest.eval.beats import audio_onsets, stroke_sync
 
 pytestmark = pytest.mark.shared
 STEM = "beat2/2_scott_0_1_1"
-SHIFTS_S = (2, 3, 5, 8, 13, 21, 34)
+#: Every whole-second shift from 2 s to 2 s before the end (the take is 63.5 s).
+SHIFTS_S = np.arange(2.0, 62.0)
 
 
 @pytest.fixture(scope="module")
@@ -35,8 +36,11 @@ def take():
 
 @pytest.mark.xfail(
     strict=True,
-    reason="measured z = -0.7 on this take (hit 0.72 vs chance 0.75): librosa's default onsets (4.3/s) are too "
-    "dense for this speaker's wrist peaks to stand out; no detector setting in a small grid reached +3",
+    reason="measured z = -0.7 on this take (hit 0.72 vs chance 0.75). Not an alignment or kinematics bug: jaw "
+    "speed vs loudness peaks at lag +0.03 s and the forward kinematics match an independent one; wrist speed shows "
+    "no relation to onsets at any lag within 0.7 s, for world or chest-frame wrists, speed peaks, minima or "
+    "acceleration extrema, default or sparse onsets (|z| < 2.3); the best FK-free variant (shoulder+elbow angular "
+    "speed) reaches z = 2.0-2.7, no more than shifted copies do. benchmarks/diag_stroke_sync.py prints the numbers",
 )
 def test_real_motion_capture_scores_above_chance(take):
     w, fps, on, spans = take
@@ -46,8 +50,10 @@ def test_real_motion_capture_scores_above_chance(take):
 def test_shifted_motion_capture_scores_chance(take):
     w, fps, on, spans = take
     zs = np.array([stroke_sync(np.roll(w, round(s * fps), axis=0), fps, on, spans)["z"] for s in SHIFTS_S])
-    assert np.median(np.abs(zs)) < 1.5, zs
-    assert np.abs(zs).max() < 2.0, zs
+    # z is standard normal-ish under the null: |z| > 1.5 on about 13 % of shifts, > 2.5 on about 1 %
+    assert np.median(np.abs(zs)) < 1.0, zs
+    assert np.mean(np.abs(zs) < 1.5) >= 0.8, zs
+    assert np.abs(zs).max() < 2.5, zs
 
 
 def test_eval_json_reports_stroke_sync(take, tmp_path):

@@ -57,7 +57,7 @@ def test_backend_moves_to_goal_and_keeps_time():
         assert b.time_s == pytest.approx(1.0, abs=1e-9)
         np.testing.assert_allclose(b.read_positions(), goal, atol=np.radians(2.0))
         log = b.log
-        assert log["q_rad"].shape == (100, 11) and log["t_s"][-1] == pytest.approx(1.0)
+        assert log["q_rad"].shape == (101, 11) and log["t_s"][0] == 0 and log["t_s"][-1] == pytest.approx(1.0)
         # the guard: outside the limits, NaN, or a step beyond the velocity limit is refused and nothing is sent
         sent = b.data.ctrl[b.sim.act_idx].copy()
         with pytest.raises(
@@ -152,4 +152,4 @@ def test_progress_reports_to_the_end():
     robot = find_robot("desk_arm_sts3215")
     calls = []
     simulate(sine_test_trajectory(robot, duration_s=0.5), robot, progress=lambda d, t: calls.append((d, t)))
-    assert calls[-1][0] == calls[-1][1] == 250 and len(calls) > 10
+    assert calls[-1][0] == calls[-1][1] == pytest.approx(0.5) and len(calls) > 10  # (trajectory s, duration s)

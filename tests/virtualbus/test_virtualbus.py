@@ -242,10 +242,15 @@ def test_disconnect_gives_clients_io_errors(tmp_path):
 
 def test_record_shapes_and_atomic_save(tmp_path):
     robot = make_robot(tmp_path)
+    before = time.monotonic()
     with VirtualBus(robot) as bus:
         time.sleep(0.1)
         out = bus.save_record(tmp_path / "rec" / "bus.npz")
+        after = time.monotonic()
     with np.load(out) as z:
+        # the bus clock's zero on time.monotonic(): samples line up with a client's own stamps
+        assert before <= float(z["t0_monotonic_s"]) <= after
+        assert before <= float(z["t0_monotonic_s"]) + z["t_s"][-1] <= after
         n, s = z["goal_ticks"].shape
         assert n >= 5 and s == 3
         assert z["present_ticks"].shape == z["torque_on"].shape == (n, s) and z["torque_on"].dtype == bool

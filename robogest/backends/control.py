@@ -1,0 +1,610 @@
+"""The control loop: the one path from any motion source to a backend, and the one go-to-rest.
+
+A :class:`ControlLoop` connects once, holds the present pose with torque on and then, every tick, takes a target
+pose from its current *source*, passes it through the loop's :class:`~robogest.safety.online.OnlineLimiter`
+(position, velocity, acceleration and jerk limits at the loop's own rate; its state is the last goal actually
+sent) and sends the result with ``backend.write_goal``. Sources, in priority order:
+
+* a :class:`~robogest.trajectory.Trajectory` given to :meth:`ControlLoop.play` (sampled at the loop time,
+  optionally starting at a given loop time; the robot first glides to its first pose if it is elsewhere);
+* rest, after :meth:`ControlLoop.interrupt` (as fast as the limits allow), until the next ``play``/``set_idle``;
+* an idle motion ``f(t_s) -> q (J,)`` set with :meth:`ControlLoop.set_idle` (``t_s`` on the loop clock);
+* otherwise the last pose reached is held.
+
+Two ways to run it, sharing every line of the tick:
+
+* **threaded** (default for realtime backends): :meth:`ControlLoop.start` starts a thread ticking at
+  ``rate_hz`` on ``time.monotonic`` with an absolute schedule; ``play`` returns at once; a late tick advances
+  the loop time (the target) but the goal still moves only one limiter period from the last goal sent;
+* **stepped** (``threaded=False``; default for the simulator): ticks run in the caller's thread inside
+  :meth:`PlayHandle.wait`, :meth:`ControlLoop.run_for` or :meth:`ControlLoop.step`; a simulated backend is
+  advanced by one period per tick, so runs are deterministic.
+
+:meth:`ControlLoop.close` (idempotent) glides to rest, then calls ``backend.shutdown()`` (torque off,
+disconnect). :func:`go_to_rest` is the same glide for a backend without a running loop (what every backend's
+``shutdown`` uses). :func:`signals_end_at_rest` turns SIGINT, SIGTERM and SIGHUP into :class:`Interrupted`
+so the same path runs, and keeps a second signal from cutting the glide short.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from robogest.backends.base import Backend, check_goal
+from robogest.errors import RobogestError
+from robogest.safety.online import LOOKAHEAD_S, OnlineLimiter
+from robogest.trajectory.types import Trajectory, check_matches
+
+#: Default control rate, Hz.
+DEFAULT_RATE_HZ = 100.0
+#: A play is done when the goal sits within this of the trajectory's last pose, still (radians).
+_DONE_TOL_RAD = 1e-4
+#: Longest glide to rest before giving up and saying so, loop seconds.
+REST_TIMEOUT_S = 10.0
+
+
+# --- signals -----------------------------------------------------------------------------------------
+class Interrupted(KeyboardInterrupt):
+    """SIGINT, SIGTERM or SIGHUP arrived: the robot is taken to rest and torque turned off on the way out.
+
+    A :class:`KeyboardInterrupt` (so ``except Exception`` never swallows it); ``exit_code`` is ``128 + signum``;
+    ``outcome`` is filled in once the shutdown has run (at rest with torque off, or why not).
+    """
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = int(signum)
+        self.signal_name = signal.Signals(signum).name
+        self.exit_code = 128 + self.signum
+        self.outcome = ""
+
+    def __str__(self) -> str:
+        return f"interrupted by {self.signal_name}" + (f"; {self.outcome}" if self.outcome else "")
+
+
+class _SignalState:
+    def __init__(self) -> None:
+        self.active = 0
+        self.fired: Interrupted | None = None
+        self.pending: int | None = None
+        self.critical = 0
+        self.later: list[str] = []  #: signals that arrived after the first (they do not cut the glide short)
+
+
+_SIG = _SignalState()
+_HANDLED = ("SIGINT", "SIGTERM", "SIGHUP")
+
+
+def _on_signal(signum: int, frame: Any) -> None:
+    if _SIG.fired is not None or _SIG.pending is not None:
+        # Already on the way to rest, as fast as the limits allow; stopping now would drop the arms.
+        _SIG.later.append(signal.Signals(signum).name)
+        return
+    if _SIG.critical:  # inside a tick: raised at its end, so goal and limiter state never disagree
+        _SIG.pending = signum
+        return
+    _SIG.fired = Interrupted(signum)
+    raise _SIG.fired
+
+
+def _raise_pending() -> None:
+    if _SIG.pending is not None and _SIG.fired is None and not _SIG.critical:
+        _SIG.fired = Interrupted(_SIG.pending)
+        raise _SIG.fired
+
+
+@contextlib.contextmanager
+def signals_end_at_rest() -> Iterator[None]:
+    """Within the block, SIGINT, SIGTERM and SIGHUP raise :class:`Interrupted` once (main thread only).
+
+    Later signals are recorded and ignored: the glide to rest already goes as fast as the limits allow, and torque
+    off mid-pose would let the arms drop. A SIGHUP that was ignored when the block began (``nohup``) stays ignored.
+    Outside the main thread this is a no-op (signals are delivered to the main thread only).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old: dict[int, Any] = {}
+    if _SIG.active == 0:
+        _SIG.fired, _SIG.pending, _SIG.later = None, None, []
+        for name in _HANDLED:
+            sig = getattr(signal, name, None)
+            if sig is None:
+                continue
+            prev = signal.getsignal(sig)
+            if name == "SIGHUP" and prev == signal.SIG_IGN:
+                continue
+            old[sig] = prev
+            signal.signal(sig, _on_signal)
+    _SIG.active += 1
+    try:
+        yield
+    finally:
+        _SIG.active -= 1
+        for sig, prev in old.items():
+            signal.signal(sig, prev)
+
+
+@contextlib.contextmanager
+def _tick_section() -> Iterator[None]:
+    """A tick is atomic with respect to signals (main thread): one that arrives inside is raised at its end."""
+    main = threading.current_thread() is threading.main_thread()
+    if main:
+        _SIG.critical += 1
+    try:
+        yield
+    finally:
+        if main:
+            _SIG.critical -= 1
+    if main:
+        _raise_pending()
+
+
+# --- handles -----------------------------------------------------------------------------------------
+@dataclass
+class Event:
+    """Something that happened in the loop: ``time.monotonic()`` and loop-clock stamps, seconds."""
+
+    name: str
+    monotonic_s: float
+    loop_s: float
+
+
+class PlayHandle:
+    """A motion given to the loop (a trajectory, or the glide to rest after :meth:`ControlLoop.interrupt`).
+
+    Events (:attr:`events`, by name): ``started`` (trajectory time 0 reached; after the glide to its first pose),
+    ``first_goal`` (first goal sent that departs from the pose held before), ``done`` (the trajectory ended and
+    the goal settled on its last pose; for a rest handle: at rest), ``interrupted`` (replaced or interrupted).
+    """
+
+    def __init__(self, loop: ControlLoop, trajectory: Trajectory | None, start_at: float | None) -> None:
+        self._loop = loop
+        self.trajectory = trajectory
+        self.start_at = start_at
+        self.events: dict[str, Event] = {}
+        self._finished = threading.Event()
+        self.error: BaseException | None = None
+        self.on_start: Callable[[], None] | None = None
+        self.progress: Callable[[float, float], None] | None = None
+        # playback state, owned by the loop
+        self.phase = "wait"  # wait -> approach -> run -> finish -> done | interrupted
+        self.t_run0 = 0.0
+        self.held: np.ndarray | None = None
+
+    @property
+    def done(self) -> bool:
+        """True once the motion ended, by completion, interruption or a loop failure."""
+        return self._finished.is_set()
+
+    @property
+    def completed(self) -> bool:
+        return "done" in self.events
+
+    def wait(self, timeout_s: float | None = None) -> bool:
+        """Block until :attr:`done` (stepped loops tick here); re-raise a loop failure. Returns :attr:`done`."""
+        self._loop._wait(self, timeout_s)
+        if self.error is not None:
+            raise self.error
+        return self.done
+
+    def _mark(self, name: str, loop_s: float) -> None:
+        if name not in self.events:
+            self.events[name] = Event(name, time.monotonic(), loop_s)
+        if name in ("done", "interrupted"):
+            self._finished.set()
+
+    def _fail(self, e: BaseException) -> None:
+        self.error = e
+        self._finished.set()
+
+
+@dataclass
+class LoopStats:
+    """Timing of the ticks: wall-clock start of each (``time.monotonic()``, seconds), late and skipped counts."""
+
+    n_ticks: int = 0
+    starts: list[float] = field(default_factory=list)
+    late_ticks: int = 0
+    skipped_slots: int = 0
+
+
+# --- the loop ----------------------------------------------------------------------------------------
+class ControlLoop:
+    """Persistent control loop on one backend (see the module docstring).
+
+    Parameters
+    ----------
+    backend : Backend
+        Connected by :meth:`start` unless ``is_connected``; shut down by :meth:`close`.
+    rate_hz : float
+        Ticks per wall-clock second; default 100 Hz.
+    on_tick : callable (loop_s, goal_rad), optional
+        Called after every tick with the loop time (s) and the goal ``(J,)`` sent (rad); keep it short.
+    threaded : bool, optional
+        Tick in a background thread; default ``backend.realtime``.
+    read_back : bool
+        Read present positions every tick (a lost servo or hardware error is caught within a tick).
+    time_scale : float
+        Trajectory seconds per loop second (tests use > 1 to play faster than real time). The limiter, the clock
+        and the backend's guard keep the real period, so a sped-up trajectory is followed only as fast as the
+        limits allow.
+    margin_rad : float
+        Targets are kept this far inside the position limits.
+    lookahead_s : float
+        Trajectories and idle motions are sampled this far ahead of the loop time, making up for the limiter's lag
+        (:data:`~robogest.safety.online.LOOKAHEAD_S`).
+    """
+
+    def __init__(
+        self,
+        backend: Backend,
+        rate_hz: float = DEFAULT_RATE_HZ,
+        *,
+        on_tick: Callable[[float, np.ndarray], None] | None = None,
+        threaded: bool | None = None,
+        read_back: bool = True,
+        time_scale: float = 1.0,
+        margin_rad: float = 0.02,
+        lookahead_s: float = LOOKAHEAD_S,
+    ) -> None:
+        if not (rate_hz > 0 and time_scale > 0):
+            raise ValueError("rate_hz and time_scale must be positive")
+        self.backend = backend
+        self.robot = backend.robot
+        self.rate_hz = float(rate_hz)
+        self.period_s = 1.0 / self.rate_hz
+        self.on_tick = on_tick
+        self.threaded = backend.realtime if threaded is None else bool(threaded)
+        self.read_back = read_back
+        self.time_scale = float(time_scale)
+        self.margin_rad = margin_rad
+        self.lookahead_s = float(lookahead_s)
+        self.limiter: OnlineLimiter | None = None
+        self.stats = LoopStats()
+        self.rest_q_rad = np.clip(self.robot.rest_q_rad, self.robot.q_min_rad, self.robot.q_max_rad)
+        self.rest_problem: str | None = None  #: why rest could not be reached at close (None: it was)
+        self._k = 0  # loop time = k * period
+        self._wall0 = 0.0
+        self._lock = threading.RLock()
+        self._play: PlayHandle | None = None
+        self._rest: PlayHandle | None = None
+        self._idle: Callable[[float], np.ndarray] | None = None
+        self._hold: np.ndarray | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._error: BaseException | None = None
+        self._started = False
+        self._closed = False
+
+    # --- clock -------------------------------------------------------------------------------------
+    @property
+    def now_s(self) -> float:
+        """Loop time of the next tick, seconds (``rate_hz`` ticks per loop second; starts at 0)."""
+        return self._k * self.period_s
+
+    def loop_s_at(self, monotonic_s: float) -> float:
+        """Loop time of a ``time.monotonic()`` instant (realtime loops: ticks are due at their loop time after
+        start), for ``play(start_at=loop.loop_s_at(t_mono))``."""
+        if not self.backend.realtime:
+            raise RuntimeError("a stepped (simulated) loop has no wall-clock time; give start_at in loop time")
+        return monotonic_s - self._wall0
+
+    @property
+    def goal_rad(self) -> np.ndarray:
+        """Last goal sent ``(J,)``, radians."""
+        if self.limiter is None:
+            raise RuntimeError("control loop not started")
+        return self.limiter.q_rad.copy()
+
+    # --- life cycle --------------------------------------------------------------------------------
+    def start(self) -> ControlLoop:
+        """Connect (if needed), hold the present pose, torque on, start ticking (threaded mode)."""
+        if self._started:
+            return self
+        set_rate = getattr(self.backend, "set_control_rate", None)
+        if set_rate is not None:
+            set_rate(self.rate_hz)
+        if not getattr(self.backend, "is_connected", False):
+            self.backend.connect()
+        q_now = np.clip(self.backend.read_positions(), self.robot.q_min_rad, self.robot.q_max_rad)
+        self.backend.write_goal(q_now, source="present pose at start")  # hold, so enabling torque does not jump
+        self.backend.set_torque(True)
+        self._adopt(q_now)
+        self._started = True
+        if self.threaded:
+            self._thread = threading.Thread(target=self._run_thread, name="robogest-control", daemon=True)
+            self._thread.start()
+        return self
+
+    def _adopt(self, q_now: np.ndarray) -> None:
+        self.limiter = OnlineLimiter.for_robot(self.robot, self.period_s, q_now, margin_rad=self.margin_rad)
+        self._hold = self.limiter.q_rad.copy()
+        self._wall0 = time.monotonic()
+        self._k = 0
+
+    def play(self, trajectory: Trajectory, start_at: float | None = None) -> PlayHandle:
+        """Play ``trajectory`` from loop time ``start_at`` (default: now; from a monotonic time: :meth:`loop_s_at`);
+        returns at once.
+
+        It must match the robot definition (:func:`~robogest.trajectory.types.check_matches`: joints in the robot's
+        order, its limits and rest). A trajectory already playing is replaced (its handle gets ``interrupted``); the
+        new one starts from wherever the goal is, within the limits.
+        """
+        check_matches(trajectory, self.robot)
+        self._check_alive()
+        h = PlayHandle(self, trajectory, start_at)
+        with self._lock:
+            self._cancel(self._play)
+            self._cancel(self._rest)
+            self._rest = None
+            self._play = h
+        return h
+
+    def set_idle(self, f: Callable[[float], np.ndarray] | None) -> None:
+        """Idle motion ``f(loop_s) -> q (J,)`` rad, used when nothing plays (None: hold the last pose)."""
+        with self._lock:
+            self._idle = f
+            if f is not None:
+                self._cancel(self._rest)
+                self._rest = None
+
+    def interrupt(self) -> PlayHandle:
+        """Stop what plays and glide to rest as fast as the limits allow; the handle is ``done`` at rest."""
+        self._check_alive()
+        with self._lock:
+            self._cancel(self._play)
+            self._play = None
+            if self._rest is None or self._rest.done:
+                self._rest = PlayHandle(self, None, None)
+                self._rest.phase = "run"
+            return self._rest
+
+    def close(self) -> str | None:
+        """Glide to rest, then ``backend.shutdown()`` (torque off, disconnect). Idempotent.
+
+        Returns None when rest was reached, else the reason it was not (also in :attr:`rest_problem`).
+        """
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join()  # a failing thread closes the loop itself: wait for its glide too
+        if self._closed:
+            return self.rest_problem
+        self._closed = True
+        with self._lock:
+            self._cancel(self._play)
+            self._play = None
+            self._idle = None
+        try:
+            if self._started and self.limiter is not None:
+                self.rest_problem = self._glide_to_rest()
+        finally:
+            self.backend.shutdown()
+        return self.rest_problem
+
+    def __enter__(self) -> ControlLoop:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # --- running -----------------------------------------------------------------------------------
+    def step(self) -> None:
+        """One tick now (stepped loops; a threaded loop ticks by itself)."""
+        if self.threaded:
+            raise RuntimeError("a threaded control loop ticks by itself; use threaded=False to step it")
+        self._check_alive()
+        self._tick_paced()
+
+    def run_for(self, seconds: float) -> None:
+        """Tick for ``seconds`` of loop time (stepped) or wait that long (threaded)."""
+        if self.threaded:
+            end = time.monotonic() + seconds
+            while time.monotonic() < end:
+                self._check_alive()
+                time.sleep(min(0.05, max(0.0, end - time.monotonic())))
+            return
+        for _ in range(max(0, round(seconds * self.rate_hz))):
+            self.step()
+
+    def _wait(self, h: PlayHandle, timeout_s: float | None) -> None:
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        while not h.done:
+            if deadline is not None and time.monotonic() >= deadline:
+                return
+            if self.threaded:
+                self._check_alive()
+                h._finished.wait(0.05)  # short waits: signals reach the main thread between them
+            else:
+                self.step()
+
+    def _check_alive(self) -> None:
+        if self._error is not None:
+            raise self._error
+        if self._closed:
+            raise RuntimeError("control loop closed")
+        if not self._started:
+            raise RuntimeError("control loop not started; call start() first")
+
+    def _run_thread(self) -> None:
+        try:
+            while not self._stop.is_set():
+                self._tick_paced()
+        except BaseException as e:
+            self._error = e
+            with self._lock:
+                for h in (self._play, self._rest):
+                    if h is not None:
+                        h._fail(e)
+            self.close()
+
+    def _tick_paced(self) -> None:
+        """Wait for this tick's slot (realtime) or advance the simulation (stepped), then tick."""
+        if self.backend.realtime:
+            wall_period = self.period_s
+            due = self._wall0 + self._k * wall_period
+            now = time.monotonic()
+            if now < due:
+                time.sleep(due - now)
+                now = time.monotonic()
+            behind = now - due
+            if behind > 0.5 * wall_period:
+                self.stats.late_ticks += 1
+            if behind >= wall_period:  # whole slots lost: the target time jumps, the goal does not
+                skip = int(behind / wall_period)
+                self._k += skip
+                self.stats.skipped_slots += skip
+            self.stats.starts.append(now)
+        with _tick_section():
+            self._tick()
+        self._k += 1
+        if not self.backend.realtime:
+            self.backend.advance(self.period_s)
+
+    # --- the tick ----------------------------------------------------------------------------------
+    def _cancel(self, h: PlayHandle | None) -> None:
+        if h is not None and not h.done:
+            h.phase = "interrupted"
+            h._mark("interrupted", self.now_s)
+
+    def _target(self, t: float) -> tuple[np.ndarray, np.ndarray | None, PlayHandle | None]:
+        """Target pose ``(J,)`` rad, its velocity (rad/s, or None) and the handle it belongs to."""
+        h = self._play
+        if h is not None and h.trajectory is not None:
+            tr = h.trajectory
+            if h.phase == "wait" and (h.start_at is None or t >= h.start_at - 1e-9):
+                h.phase = "approach"
+                h.held = self.limiter.q_rad.copy()
+            if h.phase == "approach":
+                first = self.limiter.clamp_target(tr.sample(0.0))
+                if np.max(np.abs(self.limiter.q_rad - first)) <= _DONE_TOL_RAD and self.limiter.still:
+                    h.phase = "run"
+                    h.t_run0 = t
+                    h._mark("started", t)
+                    if h.on_start is not None:
+                        h.on_start()
+                else:
+                    return first, None, h
+            if h.phase in ("run", "finish"):
+                tt = (t - h.t_run0) * self.time_scale
+                if h.progress is not None:
+                    h.progress(min(tt, tr.duration_s), tr.duration_s)
+                if tt >= tr.duration_s:
+                    h.phase = "finish"
+                    return tr.sample(tr.duration_s), None, h
+                ahead = tt + self.lookahead_s  # the limiter lags; aiming ahead makes up for it
+                return tr.sample(ahead), tr.sample_velocity(ahead), h
+        if self._rest is not None:
+            return self.rest_q_rad, None, self._rest
+        if self._idle is not None:
+            return np.asarray(self._idle(t + self.lookahead_s), dtype=float), None, None
+        return self._hold, None, None
+
+    def _source_name(self, h: PlayHandle | None) -> str:
+        if h is not None and h.trajectory is not None:
+            return "trajectory playback"
+        if h is not None:
+            return "control loop, glide to rest"
+        return "control loop, idle motion" if self._idle is not None else "control loop, holding"
+
+    def _tick(self) -> None:
+        lim = self.limiter
+        t = self.now_s
+        with self._lock:
+            target, target_v, h = self._target(t)
+            if not np.all(np.isfinite(target)):  # a source's bug: stop (and glide to rest), never brake silently
+                check_goal(target, self.robot, lim.q_rad, self.period_s, self._source_name(h))
+            if h is None or h.trajectory is not None:  # gestures and idle motion, not the glide to rest
+                shaped = self.backend.shape_target(target, self.rest_q_rad)  # the health governor, if any
+                if target_v is not None and not np.array_equal(shaped, target):
+                    target_v = None  # a scaled pose no longer moves at the trajectory's velocity
+                target = shaped
+            q = lim.propose(target, target_v)
+            self.backend.write_goal(q, source=self._source_name(h))
+            lim.commit()
+            departs = h is not None and h.held is not None and np.max(np.abs(q - h.held)) > 1e-9
+            if departs and "first_goal" not in h.events:
+                h._mark("first_goal", t)
+            if h is not None and (h.phase == "finish" or h is self._rest) and lim.settled(_DONE_TOL_RAD):
+                h.phase = "done"
+                h._mark("done", t)
+                self._hold = lim.q_rad.copy()
+                if h is self._play:
+                    self._play = None
+        if self.read_back:
+            self.backend.read_positions()
+        self.stats.n_ticks += 1
+        if self.on_tick is not None:
+            self.on_tick(t, q)
+
+    # --- rest --------------------------------------------------------------------------------------
+    def _glide_to_rest(self) -> str | None:
+        """Tick towards rest (in the caller's thread) until there and still; then let the joints settle."""
+        self._stop.set()
+        with self._lock:
+            self._play = None
+            self._idle = None
+            self._rest = PlayHandle(self, None, None)
+            self._rest.phase = "run"
+            rest = self._rest
+        limit = int(REST_TIMEOUT_S * self.rate_hz) + 1
+        try:
+            for _ in range(limit):
+                if rest.done:
+                    break
+                self._tick_paced()
+        except RobogestError as e:
+            return f"could not reach rest ({e})"
+        if not rest.done:
+            return f"did not reach rest within {REST_TIMEOUT_S:g} s"
+        self._settle()
+        return None
+
+    def _settle(self, tol_rad: float = 0.02, timeout_s: float = 0.5) -> None:
+        """Hold rest until the joints get there (servos lag their goal), so torque goes off at rest."""
+        for _ in range(int(timeout_s * self.rate_hz) + 1):
+            if np.max(np.abs(self.backend.read_positions() - self.rest_q_rad)) <= tol_rad:
+                return
+            if self.backend.realtime:
+                time.sleep(self.period_s)
+            else:
+                self.backend.advance(self.period_s)
+
+
+def go_to_rest(backend: Backend, rate_hz: float | None = None) -> str | None:
+    """Glide ``backend`` from its last goal (or present pose) to rest within every limit; the one go-to-rest.
+
+    For a backend without a running :class:`ControlLoop` (every backend's ``shutdown`` calls it; after a loop's
+    own glide it finds the robot at rest and returns at once). The start is taken to be still. ``rate_hz``
+    defaults to the backend's control rate (so per-tick steps stay what its guard expects). Torque is left as it
+    is. Returns None at rest, else why not.
+    """
+    loop = ControlLoop(backend, rate_hz or getattr(backend, "control_rate_hz", DEFAULT_RATE_HZ), threaded=False)
+    last = getattr(backend, "last_goal_rad", None)
+    try:
+        q0 = np.asarray(last if last is not None else backend.read_positions(), dtype=float)
+    except RobogestError as e:
+        return f"could not reach rest ({e})"
+    loop._adopt(np.clip(q0, backend.robot.q_min_rad, backend.robot.q_max_rad))
+    loop._started = True
+    return loop._glide_to_rest()
+
+
+__all__ = [
+    "DEFAULT_RATE_HZ",
+    "ControlLoop",
+    "Event",
+    "Interrupted",
+    "LoopStats",
+    "PlayHandle",
+    "go_to_rest",
+    "signals_end_at_rest",
+]
