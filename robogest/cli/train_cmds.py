@@ -15,7 +15,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "train",
         help="train a learned gesture generator (needs robogest[learn])",
         description="Train a learned generator on a dataset folder (GENEA/Trinity, BEAT2, or NAME.wav + "
-        "NAME.bvh|.npz pairs). Writes OUT/last.pt (every epoch), OUT/best.pt (lowest validation loss) and "
+        "NAME.bvh|.npz pairs). Writes OUT/last.pt (every epoch), OUT/best.pt (lowest held-out loss, on a "
+        "free-running rollout for the autoregressive models) and "
         "OUT/history.json; either .pt works with `robogest speak --generator NAME --checkpoint FILE`. "
         "Launch with torchrun for multi-GPU DistributedDataParallel training. The rhythmic model trains its stages "
         "(audio encoder, lexicon, generator, interpreters) one after another, so it needs --epochs >= 4.",
