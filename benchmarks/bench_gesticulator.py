@@ -17,7 +17,7 @@ import torch
 
 from robogest.data import FeatureConfig
 from robogest.data.prep import Normalization
-from robogest.generators.gesticulator import GesticulatorConfig, GesticulatorGenerator, GesticulatorNet
+from robogest.generators.learned.gesticulator import GesticulatorConfig, GesticulatorGenerator, GesticulatorNet
 
 
 def main() -> None:

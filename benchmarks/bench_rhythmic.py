@@ -30,14 +30,15 @@ def main() -> None:
     import torch
 
     from robogest.eval import lexeme_entropy, motion_beats, pmb
-    from robogest.generators.rhythmic_learned import RhythmicGenerator
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
     from robogest.speech import analyze, synthesize
 
     torch.set_num_threads(args.threads)
     ckpt = args.checkpoint
     if ckpt is None:
         from robogest.data import make_fixture_dataset
-        from robogest.learn.trainer import TrainConfig, train
+        from robogest.generators.learned import train_model
+        from robogest.learn.trainer import TrainConfig
 
         tmp = Path(tempfile.mkdtemp(prefix="bench_rhythmic_"))
         data = make_fixture_dataset(tmp / "ds", n_takes=2, duration_s=8.0)
@@ -46,7 +47,7 @@ def main() -> None:
             window_stride=10, val_fraction=0.0, device="cpu", cache_dir=str(tmp / "cache"),
             text_encoder="hash-test", text_encoder_kwargs={"dim": 16},
         )  # fmt: skip
-        ckpt = train(cfg, log=lambda s: None)
+        ckpt = train_model(cfg, log=lambda s: None)
     gen = RhythmicGenerator(ckpt)
     base = synthesize("Hello there, I am a robot and I like to wave my arms while I talk ... " * 3)
     reps = max(1, int(np.ceil(args.seconds / base.duration_s)))

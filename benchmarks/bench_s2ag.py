@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from robogest.data import FeatureConfig
-from robogest.generators.s2ag import S2AGConfig, S2AGGenerator, S2AGNet, directions_to_motion
+from robogest.generators.learned.s2ag import S2AGConfig, S2AGGenerator, S2AGNet, directions_to_motion
 
 
 def main() -> None:

@@ -15,7 +15,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "train",
         help="train a learned gesture generator (needs robogest[learn])",
         description="Train a learned generator on a dataset folder (GENEA/Trinity, BEAT2, or NAME.wav + "
-        "NAME.bvh|.npz pairs). Writes OUT/last.pt (every epoch), OUT/best.pt (lowest validation loss) and "
+        "NAME.bvh|.npz pairs). Writes OUT/last.pt (every epoch), OUT/best.pt (lowest held-out loss, on a "
+        "free-running rollout for the autoregressive models) and "
         "OUT/history.json; either .pt works with `robogest speak --generator NAME --checkpoint FILE`. "
         "Launch with torchrun for multi-GPU DistributedDataParallel training. The rhythmic model trains its stages "
         "(audio encoder, lexicon, generator, interpreters) one after another, so it needs --epochs >= 4.",
@@ -37,7 +38,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="Adam learning rate (default: the model's paper value: gesticulator 1e-4, rhythmic "
         "3e-4; s2ag always uses its own two rates, see --set lr_generator=...)",
     )  # fmt: skip
-    p.add_argument("--val-fraction", type=checks.number(0.0, 0.9), default=0.1, help="share of takes for validation")
+    p.add_argument(
+        "--val-fraction", type=checks.number(0.0, 0.9), default=0.1,
+        help="share of takes for validation (a folder with BEAT2's train_test_split.csv uses its split instead)",
+    )  # fmt: skip
     p.add_argument(
         "--window-stride", type=checks.positive_int(1_000_000), default=5, help="frames between training windows"
     )
@@ -67,6 +71,7 @@ def parse_options(items: list[str]) -> dict[str, object]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from robogest.generators.learned import get_model_spec
     from robogest.learn.trainer import TrainConfig, train
 
     if os.path.realpath(args.out) == os.path.realpath(args.data):
@@ -92,6 +97,6 @@ def run(args: argparse.Namespace) -> int:
         cache_dir=args.cache_dir,
         model_overrides=parse_options(args.options),
     )
-    best = train(cfg)
+    best = train(cfg, get_model_spec(args.model))
     print(f"best checkpoint: {best}")
     return 0

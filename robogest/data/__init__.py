@@ -12,6 +12,8 @@ from robogest.data.datasets import (
     discover_takes,
     load_dataset,
     load_take,
+    official_split,
+    speaker_key,
 )
 from robogest.data.features import FeatureConfig, expmap_to_motion, motion_to_expmap, speech_inputs
 from robogest.data.fixtures import make_fixture_dataset
@@ -32,6 +34,8 @@ __all__ = [
     "make_fixture_dataset",
     "make_windows",
     "motion_to_expmap",
+    "official_split",
+    "speaker_key",
     "speech_inputs",
     "split_takes",
 ]

@@ -16,9 +16,12 @@ to the shorter. Features are cached as ``.npz`` keyed by the input files (path, 
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import os
+import re
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,7 +34,7 @@ from robogest.fileio import atomic_path
 
 _AUDIO_EXT = (".wav", ".flac", ".ogg", ".mp3")
 _MOTION_EXT = (".bvh", ".npz")
-_TRANSCRIPT_EXT = (".TextGrid", ".textgrid", ".json", ".txt")
+_TRANSCRIPT_EXT = (".TextGrid", ".textgrid", ".json", ".tsv", ".csv", ".txt")
 
 
 @dataclass(frozen=True)
@@ -156,6 +159,42 @@ def discover_takes(root: str | os.PathLike) -> list[TakeFiles]:
     return takes
 
 
+#: BEAT2's official split file at the dataset root: ``id,type`` rows, type ``train``, ``val``, ``test`` (or
+#: ``additional``, trained on like ``train``).
+SPLIT_FILE = "train_test_split.csv"
+
+
+def official_split(root: str | os.PathLike) -> dict[str, str] | None:
+    """Take name -> ``"train"``, ``"val"`` or ``"test"`` from ``root/train_test_split.csv`` (BEAT2), else None.
+
+    Raises
+    ------
+    InputError
+        The file exists but has no ``id`` and ``type`` columns.
+    """
+    import csv
+
+    path = Path(root) / SPLIT_FILE
+    if not path.is_file():
+        return None
+    with path.open(newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    if not rows or not {"id", "type"} <= set(rows[0]):
+        raise InputError(f"{path}: expected the columns id,type (BEAT2's official split)")
+    kinds = {"train": "train", "additional": "train", "val": "val", "test": "test"}
+    return {r["id"].strip(): kinds.get(r["type"].strip().lower(), "test") for r in rows}
+
+
+_SPEAKER_RE = re.compile(r"^(\d+)_")
+
+
+def speaker_key(take_name: str) -> str:
+    """Speaker of a take from its name: BEAT2's leading speaker number (``"2_scott_0_1_1"`` -> ``"2"``), else
+    ``"default"`` (GENEA/Trinity and plain folders hold one speaker)."""
+    m = _SPEAKER_RE.match(take_name)
+    return m.group(1) if m else "default"
+
+
 def default_cache_dir() -> Path:
     """``$ROBOGEST_CACHE_DIR`` or ``$XDG_CACHE_HOME/robogest/features`` (``~/.cache`` by default)."""
     if os.environ.get("ROBOGEST_CACHE_DIR"):
@@ -181,12 +220,23 @@ def _atomic_savez(path: Path, **arrays: np.ndarray) -> None:
         np.savez(tmp, **arrays)
 
 
-def compute_take(files: TakeFiles, config: FeatureConfig, encoder=None) -> Take:
-    """Read and align one take (no cache)."""
+def compute_take(
+    files: TakeFiles, config: FeatureConfig, encoder=None, warn: Callable[[str], None] | None = None
+) -> Take:
+    """Read and align one take (no cache).
+
+    A recording of any length is accepted (the speech front-end's ``max_duration_s`` guards interactive input,
+    not datasets: GENEA 2020 takes are about 10 min). Timed words that cannot be aligned (zero length without
+    room, overlapping, beyond the audio) are dropped with one ``warn`` line for the take.
+    """
     from robogest.motion import load_motion
     from robogest.speech import load_speech
 
-    speech = load_speech(files.audio, files.transcript, config.speech_config())
+    skipped: list[str] = []
+    speech_config = dataclasses.replace(config.speech_config(), max_duration_s=math.inf)
+    speech = load_speech(files.audio, files.transcript, speech_config, skip_bad_words=skipped.append)
+    if skipped:
+        (warn or _warn)(f"{files.name}: skipped {len(skipped)} malformed word(s); first: {skipped[0]}")
     motion = load_motion(files.motion).resample(config.fps)
     acoustic, text = speech_inputs(speech, config, encoder)  # (T_s, 69), (T_s, D)
     poses = motion_to_expmap(motion)  # (T_m, J * 3)
@@ -197,7 +247,11 @@ def compute_take(files: TakeFiles, config: FeatureConfig, encoder=None) -> Take:
 
 
 def load_take(
-    files: TakeFiles, config: FeatureConfig, cache_dir: str | os.PathLike | None = None, encoder=None
+    files: TakeFiles,
+    config: FeatureConfig,
+    cache_dir: str | os.PathLike | None = None,
+    encoder=None,
+    warn: Callable[[str], None] | None = None,
 ) -> Take:
     """One take, from the feature cache when it is there (``cache_dir=None``: :func:`default_cache_dir`)."""
     cdir = Path(cache_dir) if cache_dir is not None else default_cache_dir()
@@ -208,7 +262,7 @@ def load_take(
                 return Take(files.name, z["acoustic"], z["text"], z["poses"], float(z["fps"]), files.audio)
         except (OSError, KeyError, ValueError):
             pass  # unreadable cache entry: recompute and overwrite
-    take = compute_take(files, config, encoder)
+    take = compute_take(files, config, encoder, warn)
     _atomic_savez(path, acoustic=take.acoustic, text=take.text, poses=take.poses, fps=np.float64(take.fps))
     return take
 
@@ -218,18 +272,47 @@ def load_dataset(
     config: FeatureConfig,
     cache_dir: str | os.PathLike | None = None,
     progress: Callable[[int, int], None] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> list[Take]:
-    """Every take of ``root``, aligned and cached."""
+    """Every take of ``root``, aligned and cached.
+
+    A take that cannot be read (unreadable file, a transcript that cannot be parsed) is left out with one ``warn``
+    line (default: ``warning: ...`` on stderr), so one bad recording never stops a run. With BEAT2's official split
+    (:data:`SPLIT_FILE`) the test takes are not loaded.
+
+    Raises
+    ------
+    InputError
+        No take of ``root`` could be read (the message carries the first take's reason).
+    """
     files = discover_takes(root)
+    say = warn or _warn
+    split = official_split(root)
+    if split is not None:  # the official test takes never train or select a model
+        test = [f for f in files if split.get(f.name, "test") == "test"]
+        files = [f for f in files if f not in test]
+        say(f"{SPLIT_FILE}: official split used, {len(test)} test (or unlisted) take(s) left out")
+        if not files:
+            raise InputError(f"{Path(root) / SPLIT_FILE}: no take of the folder is listed as train or val")
     encoder = None
-    takes = []
+    takes, failed = [], []
     for i, f in enumerate(files):
         if progress is not None:
             progress(i, len(files))
         cdir = Path(cache_dir) if cache_dir is not None else default_cache_dir()
         if encoder is None and not (cdir / f"{f.name}-{cache_key(f, config)}.npz").is_file():
             encoder = text_encoder_for(config)  # only load (seconds for MiniLM) when something is not cached
-        takes.append(load_take(f, config, cache_dir, encoder))
+        try:
+            takes.append(load_take(f, config, cache_dir, encoder, say))
+        except InputError as e:
+            failed.append(str(e))
+            say(f"{f.name}: take skipped ({e})")
     if progress is not None:
         progress(len(files), len(files))
+    if not takes:
+        raise InputError(f"{root}: no take could be read; first problem: {failed[0]}")
     return takes
+
+
+def _warn(message: str) -> None:
+    print(f"warning: {message}", file=sys.stderr, flush=True)

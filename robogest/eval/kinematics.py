@@ -187,30 +187,36 @@ def truncate_pair(pred: np.ndarray, gt: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def maje_mad(pred_pos: np.ndarray, gt_pos: np.ndarray, fps: float) -> dict:
-    """MAJE and MAD (Rhythmic Gesticulator §7.3.2).
+    """MAJE and MAD as the S2AG reference code computes them (used by Rhythmic Gesticulator §7.3.2).
 
-    MAJE: mean over frames and joints of the Euclidean distance between generated and ground-truth joint
-    positions. MAD: mean over frames and joints of the ℓ2 norm of the acceleration difference. Both need
-    frame-aligned motions, so the longer one is truncated to the shorter; ``dropped_frames`` says by how much.
+    MAJE: mean absolute difference of the joint coordinates (over frames, joints and x/y/z, not a per-joint
+    Euclidean distance, which is about twice as large). MAD: mean absolute difference of the coordinates' second
+    differences, per frame² (no fps² factor), so the numbers compare with the papers' at the same frame rate.
+    Both need frame-aligned motions, so the longer one is truncated to the shorter; ``dropped_frames`` says by how
+    much.
 
     Parameters
     ----------
     pred_pos, gt_pos : ndarray [shape=(T, J, 3)], metres
     fps : float
+        Frame rate of both (MAD depends on it: compare only at equal rates).
 
     Returns
     -------
     dict
-        ``maje_mm``, ``mad_mm_s2``, ``n_frames`` (used), ``dropped_frames``.
+        ``maje_mm``, ``mad_mm_per_frame2``, ``fps``, ``n_frames`` (used), ``dropped_frames``.
     """
     pred_pos = _check_pos(pred_pos, fps, 3, "pred")
     gt_pos = _check_pos(gt_pos, fps, 3, "gt")
     if pred_pos.shape[1:] != gt_pos.shape[1:]:
         raise InputError(f"pred and gt skeletons differ: {pred_pos.shape[1:]} vs {gt_pos.shape[1:]}")
     p, g, dropped = truncate_pair(pred_pos, gt_pos)
-    maje = np.linalg.norm(p - g, axis=-1).mean() * M_TO_MM
-    mad = np.linalg.norm(derivative(p, fps, 2) - derivative(g, fps, 2), axis=-1).mean() * M_TO_MM
-    return {"maje_mm": float(maje), "mad_mm_s2": float(mad), "n_frames": len(p), "dropped_frames": dropped}
+    maje = np.abs(p - g).mean() * M_TO_MM
+    mad = np.abs(np.diff(p, n=2, axis=0) - np.diff(g, n=2, axis=0)).mean() * M_TO_MM
+    return {
+        "maje_mm": float(maje), "mad_mm_per_frame2": float(mad), "fps": float(fps), "n_frames": len(p),
+        "dropped_frames": dropped,
+    }  # fmt: skip
 
 
 def spans_to_mask(spans: Sequence[tuple[float, float]], n_frames: int, fps: float) -> np.ndarray:

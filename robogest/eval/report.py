@@ -36,6 +36,15 @@ def wrist_indices(joint_names: Sequence[str]) -> list[int] | None:
     return idx or None
 
 
+def real_vs_real(gt_pos: np.ndarray, fps: float) -> dict:
+    """The Fréchet distances of the real motion's first half against its second half: the noise floor below
+    which FD_k / FD_g of a generated motion against the same real motion mean nothing (on one BEAT2 take
+    FD_g real-vs-real is of the order of generated-vs-real, so FD_g is dominated by sampling noise; use FGD with
+    a trained evaluator for comparisons with the papers)."""
+    half = gt_pos.shape[0] // 2
+    return feature_distances(gt_pos[:half], gt_pos[half:], fps)
+
+
 def evaluate_motion(
     pred_pos: np.ndarray,
     fps: float,
@@ -79,6 +88,7 @@ def evaluate_motion(
             out["wrist_speed"] = wrist_speed_comparison(pred_pos, gt_pos, fps, wr)
         out["maje_mad"] = maje_mad(pred_pos, gt_pos, fps)
         out["features"] = feature_distances(pred_pos, gt_pos, fps)
+        out["features_noise_floor"] = real_vs_real(gt_pos, fps)
     if audio_beats_s is not None:
         spans = list(silent_spans or ())
         kw = {"wrists": wr, "n_shifts": n_shifts, "onsets_s": onsets_s, "silent_spans": spans}
@@ -168,10 +178,18 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
         if "maje_mad" in result:
             m = result["maje_mad"]
             note = f" ({m['dropped_frames']} frames truncated)" if m["dropped_frames"] else ""
-            rows += [("MAJE (mm)", _fmt(m["maje_mm"]) + note), ("MAD (mm/s²)", _fmt(m["mad_mm_s2"]))]
+            mad = (f"MAD (mm/frame² at {m['fps']:g} fps)", _fmt(m["mad_mm_per_frame2"]))
+            rows += [("MAJE (mm)", _fmt(m["maje_mm"]) + note), mad]
         if "features" in result:
             f = result["features"]
-            rows += [("FD kinetic", _fmt(f["fd_kinetic"])), ("FD geometric", _fmt(f["fd_geometric"]))]
+            floor = result.get("features_noise_floor", {})
+            rows += [
+                ("FD kinetic (real vs real)", f"{_fmt(f['fd_kinetic'])} ({_fmt(floor.get('fd_kinetic', math.nan))})"),
+                (
+                    "FD geometric (real vs real)",
+                    f"{_fmt(f['fd_geometric'])} ({_fmt(floor.get('fd_geometric', math.nan))})",
+                ),
+            ]
             rows.append(
                 ("diversity kinetic (gt)", f"{_fmt(f['diversity_kinetic'])} ({_fmt(f['gt_diversity_kinetic'])})")
             )

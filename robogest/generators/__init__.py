@@ -9,7 +9,7 @@ DEFAULT_GENERATOR = "rhythm"
 @register_generator("gesticulator")
 def _gesticulator(**kwargs: object) -> Generator:
     """Imported on request only: it needs torch (``pip install 'robogest[learn]'``)."""
-    from robogest.generators.gesticulator import GesticulatorGenerator
+    from robogest.generators.learned.gesticulator import GesticulatorGenerator
 
     return GesticulatorGenerator(**kwargs)
 
@@ -17,7 +17,7 @@ def _gesticulator(**kwargs: object) -> Generator:
 @register_generator("rhythmic")
 def _rhythmic(**kwargs: object) -> Generator:
     """Learned Rhythmic Gesticulator; imported on request only (needs torch)."""
-    from robogest.generators.rhythmic_learned import RhythmicGenerator
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
 
     return RhythmicGenerator(**kwargs)
 
@@ -25,7 +25,7 @@ def _rhythmic(**kwargs: object) -> Generator:
 @register_generator("s2ag")
 def _s2ag(**kwargs: object) -> Generator:
     """Learned Speech2AffectiveGestures; imported on request only (needs torch)."""
-    from robogest.generators.s2ag import S2AGGenerator
+    from robogest.generators.learned.s2ag import S2AGGenerator
 
     return S2AGGenerator(**kwargs)
 

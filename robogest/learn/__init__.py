@@ -1,4 +1,7 @@
-"""Training stack shared by the learned generators: model registry, trainer, checkpoints, DDP.
+"""Training stack shared by the learned generators: trainer, checkpoints, DDP, model options.
+
+The models themselves live in :mod:`robogest.generators.learned`; the trainer receives a model's spec from its
+caller (the ``robogest train`` command), so nothing here names a generator.
 
 Torch lives in the optional extra ``robogest[learn]``; this package imports it only through
 :func:`require_torch`, which turns its absence into a :class:`~robogest.errors.MissingDependencyError` that says
@@ -8,19 +11,11 @@ what to install.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 from typing import Any
 
 from robogest.errors import InputError, MissingDependencyError
 
 LEARN_HINT = "pip install 'robogest[learn]'"
-
-#: Model name -> ``"module:attribute"`` of its :class:`~robogest.learn.spec.ModelSpec` (imported on demand).
-MODEL_SPECS: dict[str, str] = {
-    "gesticulator": "robogest.generators.gesticulator:SPEC",
-    "rhythmic": "robogest.generators.rhythmic_learned:SPEC",
-    "s2ag": "robogest.generators.s2ag:SPEC",
-}
 
 
 def require_torch(what: str = "learned generators") -> Any:
@@ -32,18 +27,6 @@ def require_torch(what: str = "learned generators") -> Any:
             f"{what} need PyTorch, which is not installed; install it with: {LEARN_HINT}"
         ) from None
     return torch
-
-
-def model_names() -> list[str]:
-    return sorted(MODEL_SPECS)
-
-
-def get_model_spec(name: str) -> Any:
-    """The :class:`~robogest.learn.spec.ModelSpec` registered as ``name``."""
-    if name not in MODEL_SPECS:
-        raise InputError(f"unknown model {name!r}; choose one of {', '.join(model_names())}")
-    module, attr = MODEL_SPECS[name].split(":")
-    return getattr(importlib.import_module(module), attr)
 
 
 def config_with_overrides(cls: type, model: str, overrides: dict[str, Any], **fixed: Any) -> Any:
@@ -87,4 +70,4 @@ def _coerce(model: str, key: str, value: Any, default: Any) -> Any:
     return value
 
 
-__all__ = ["LEARN_HINT", "MODEL_SPECS", "config_with_overrides", "get_model_spec", "model_names", "require_torch"]
+__all__ = ["LEARN_HINT", "config_with_overrides", "require_torch"]

@@ -23,13 +23,13 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from robogest.data.datasets import load_dataset
+from robogest.data.datasets import load_dataset, official_split
 from robogest.data.features import FeatureConfig
 from robogest.data.prep import Normalization, make_windows, split_takes
 from robogest.errors import InputError
 from robogest.fileio import atomic_path
 from robogest.learn import dist as D
-from robogest.learn import get_model_spec, require_torch
+from robogest.learn import require_torch
 from robogest.learn.checkpoint import load_checkpoint, make_checkpoint, save_checkpoint
 
 
@@ -69,12 +69,16 @@ class ModelSpec(Protocol):
 #: ``plan_epochs(config, epochs) -> config``
 #:     Fill epoch-dependent config fields (a schedule of training stages) from ``--epochs``; fresh runs only, so a
 #:     resumed run keeps the plan in its checkpoint.
+#: ``validation_loss(model, speech, poses, epoch, config) -> Tensor``
+#:     The held-out loss ``best.pt`` is chosen on, instead of :meth:`ModelSpec.loss`: an autoregressive model's
+#:     free-running rollout (its own outputs fed back, as at run time), not a teacher-forced one.
 #: ``first_best_epoch(config) -> int``
 #:     Epochs before this one (0-based) never become ``best.pt`` (e.g. before every stage has trained).
 #: ``stage_name(epoch, config) -> str``
 #:     What the epoch trains, for the log line and ``history.json``.
 OPTIONAL_SPEC_METHODS = (
-    "fit_config", "make_windows", "make_optimizers", "train_step", "plan_epochs", "first_best_epoch", "stage_name",
+    "fit_config", "make_windows", "make_optimizers", "train_step", "plan_epochs", "validation_loss",
+    "first_best_epoch", "stage_name",
 )  # fmt: skip
 
 
@@ -189,16 +193,19 @@ def _batches(n: int, batch: int, generator, info: D.DistInfo) -> list[np.ndarray
     return out
 
 
-def train(cfg: TrainConfig, log: Callable[[str], None] | None = None) -> Path:
-    """Run training; returns the path of the best checkpoint.
+def train(cfg: TrainConfig, spec: ModelSpec, log: Callable[[str], None] | None = None) -> Path:
+    """Run training of the model ``spec`` describes (``robogest.generators.learned.get_model_spec(cfg.model)``);
+    returns the path of the best checkpoint.
 
     Raises
     ------
     InputError
-        Bad folder, too little data for one window, a resume checkpoint of another model or feature setup.
+        ``spec`` is not ``cfg.model``'s, bad folder, too little data for one window, a resume checkpoint of another
+        model or feature setup.
     """
     torch = require_torch()
-    spec: ModelSpec = get_model_spec(cfg.model)
+    if spec.name != cfg.model:
+        raise InputError(f"TrainConfig names model {cfg.model!r} but the spec is {spec.name!r}'s")
     info, device = D.setup(cfg.device)
     say = (log or (lambda s: print(s, flush=True))) if info.is_main else (lambda s: None)
     try:
@@ -217,7 +224,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
     takes = load_dataset(cfg.data, fcfg, cfg.cache_dir)
     minutes = sum(t.n_frames for t in takes) / fcfg.fps / 60
     say(f"{len(takes)} takes, {minutes:.1f} min of speech (features in {time.perf_counter() - t0:.1f} s)")
-    train_takes, val_takes = split_takes(takes, cfg.val_fraction, cfg.seed)
+    train_takes, val_takes = split_takes(takes, cfg.val_fraction, cfg.seed, official_split(cfg.data))
     norm = Normalization.fit(train_takes)
     n_acoustic, n_text, n_pose = takes[0].acoustic.shape[1], takes[0].text.shape[1], takes[0].poses.shape[1]
 
@@ -274,8 +281,6 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         # Pre-training epochs leave the autoregressive pose encoder unused, hence find_unused_parameters.
         net = DDP(model, device_ids=[device.index] if device.type == "cuda" else None, find_unused_parameters=True)
 
-    x_t, y_t = torch.from_numpy(xs), torch.from_numpy(ys)
-    vx_t, vy_t = torch.from_numpy(vx), torch.from_numpy(vy)
     best_path = out / "best.pt"
 
     def checkpoint(next_epoch: int) -> dict[str, Any]:
@@ -299,7 +304,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         stage = spec.stage_name(epoch, mcfg) if hasattr(spec, "stage_name") else ""
         t_ep = time.perf_counter()
         g = torch.Generator().manual_seed(cfg.seed * 100_003 + epoch)
-        batches = _batches(x_t.shape[0], cfg.batch_size, g, info)
+        batches = _batches(len(xs), cfg.batch_size, g, info)
         net.train()
         total, count = 0.0, 0
         parts: dict[str, float] = {}
@@ -308,7 +313,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         if bar and epoch == start:
             bar.start()
         for b in batches:
-            xb, yb = x_t[b].to(device), y_t[b].to(device)
+            xb, yb = torch.from_numpy(xs[b]).to(device), torch.from_numpy(ys[b]).to(device)  # read from disk
             if custom_step:
                 stats = spec.train_step(net, optimizers, xb, yb, epoch, mcfg)
                 batch_loss = float(stats["loss"])
@@ -327,7 +332,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
                 bar.update(task, advance=1, loss=f"{total / count:.4f}")
         if bar:
             bar.remove_task(task)
-        val = _evaluate(spec, model, vx_t, vy_t, epoch, mcfg, device, cfg.batch_size, info, torch)
+        val = _evaluate(spec, model, vx, vy, epoch, mcfg, device, cfg.batch_size, info, torch)
         train_loss = D.all_reduce_mean([total / max(count, 1)], info, device)[0]
         part_means = dict(
             zip(parts, D.all_reduce_mean([v / max(count, 1) for v in parts.values()], info, device), strict=True)
@@ -361,10 +366,11 @@ def _evaluate(spec, model, vx, vy, epoch, mcfg, device, batch, info, torch) -> f
     """Mean validation loss (rank 0 evaluates everything; NaN without validation windows)."""
     if vx.shape[0] == 0:
         return math.nan
+    loss = getattr(spec, "validation_loss", spec.loss)
     model.eval()
     total = 0.0
     with torch.no_grad():
         for s in range(0, vx.shape[0], batch):
-            xb, yb = vx[s : s + batch].to(device), vy[s : s + batch].to(device)
-            total += float(spec.loss(model, xb, yb, epoch, mcfg)) * xb.shape[0]
+            xb, yb = torch.from_numpy(vx[s : s + batch]).to(device), torch.from_numpy(vy[s : s + batch]).to(device)
+            total += float(loss(model, xb, yb, epoch, mcfg)) * xb.shape[0]
     return total / vx.shape[0]

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from robogest.speech.beats import identify_beats
 from robogest.speech.config import SpeechConfig
-from robogest.speech.core import analyze, load_speech, synthesize
+from robogest.speech.core import analyze, audio_beats, load_speech, synthesize
 from robogest.speech.export import save_features, speech_summary, write_wav
 from robogest.speech.transcript import count_syllables
 from robogest.speech.types import FILLER_WORDS, Speech, SpeechFeatures, Word
@@ -25,6 +25,7 @@ __all__ = [
     "SpeechFeatures",
     "Word",
     "analyze",
+    "audio_beats",
     "count_syllables",
     "identify_beats",
     "load_speech",

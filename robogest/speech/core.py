@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -87,16 +87,9 @@ def analyze(
     duration = a.shape[0] / sr
     ws = validate_words(words, duration, source) if words else ()
 
-    volume, vrate = fine_volume(a, sr, config)
-    noise = estimate_noise_level(volume, config)
-    thresh = activity_threshold(noise, config)
+    volume, vrate, noise, thresh = _volume(a, sr, config)
     spans = silent_spans(volume, vrate, thresh, duration, config.min_silence_s, ws)
-
-    hop = round(sr / vrate)
-    onsets = gate_onsets(detect_onsets(a, sr, hop), volume, vrate, thresh)
-    beats, pseudo = identify_beats(
-        onsets, volume, thresh, vrate, config.min_beat_gap_s, config.max_beat_gap_s, duration_s=duration
-    )
+    beats, pseudo = _beats(a, sr, volume, vrate, thresh, config)
 
     acoustic = acoustic_features(a, sr, config, thresh)
     n_frames = config.n_frames(a.shape[0], sr)
@@ -125,8 +118,48 @@ def analyze(
     )
 
 
+def _volume(a: np.ndarray, sr: int, config: SpeechConfig) -> tuple[np.ndarray, float, float, float]:
+    """Fine volume track, its rate, the noise level and the activity threshold of samples ``a`` at ``sr``."""
+    volume, vrate = fine_volume(a, sr, config)
+    noise = estimate_noise_level(volume, config)
+    return volume, vrate, noise, activity_threshold(noise, config)
+
+
+def _beats(
+    a: np.ndarray, sr: int, volume: np.ndarray, vrate: float, thresh: float, config: SpeechConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    onsets = gate_onsets(detect_onsets(a, sr, round(sr / vrate)), volume, vrate, thresh)
+    return identify_beats(
+        onsets, volume, thresh, vrate, config.min_beat_gap_s, config.max_beat_gap_s, duration_s=a.shape[0] / sr
+    )
+
+
+def audio_beats(audio: np.ndarray, sr: int, config: SpeechConfig = _DEFAULT) -> tuple[np.ndarray, np.ndarray]:
+    """The beats :func:`analyze` puts in ``Speech.beats_s`` (and their pseudo flags), without the other features:
+    for recordings whose features are cached (learned-model training takes), so they are cut by the same rule.
+
+    Parameters
+    ----------
+    audio : ndarray [shape=(N,)], float32
+        Mono samples at ``sr`` Hz (any length: no ``max_duration_s`` check).
+
+    Returns
+    -------
+    beats_s : ndarray [shape=(B,)], seconds
+    is_pseudo : ndarray [shape=(B,)], bool
+    """
+    a = resample(np.asarray(audio, np.float32), sr, config.sr)
+    if a.shape[0] == 0:
+        return np.zeros(0), np.zeros(0, bool)
+    volume, vrate, _, thresh = _volume(a, config.sr, config)
+    return _beats(a, config.sr, volume, vrate, thresh, config)
+
+
 def load_speech(
-    audio_path: str | Path, transcript_path: str | Path | None = None, config: SpeechConfig = _DEFAULT
+    audio_path: str | Path,
+    transcript_path: str | Path | None = None,
+    config: SpeechConfig = _DEFAULT,
+    skip_bad_words: Callable[[str], None] | None = None,
 ) -> Speech:
     """Load an audio file (WAV/FLAC/OGG/MP3, any rate, stereo mixed down) with an optional transcript.
 
@@ -137,6 +170,9 @@ def load_speech(
         ``.txt`` (untimed, spread over the voiced regions by syllables), ``.TextGrid`` (``words`` tier),
         ``.json`` or ``.tsv``/``.csv`` word timings; see :mod:`robogest.speech.transcript`.
     config : SpeechConfig
+    skip_bad_words : callable, optional
+        Receives the message of each timed word that cannot be aligned, which is then dropped (datasets); without
+        it such a word is an :class:`InputError`.
 
     Raises
     ------
@@ -153,7 +189,7 @@ def load_speech(
         text = tr.text
         where = f"transcript {transcript_path} for {path}"
         if tr.timed:
-            words = validate_words(tr.words, raw.shape[0] / file_sr, where)
+            words = validate_words(tr.words, raw.shape[0] / file_sr, where, skip=skip_bad_words)
         else:
             a = resample(raw, file_sr, config.sr)
             volume, vrate = fine_volume(a, config.sr, config)

@@ -14,7 +14,7 @@ Accepted transcript files (chosen by suffix):
 
     * a list of word objects;
     * ``{"words": [...]}`` (GENEA/Trinity), also nested as ``{"segments": [{"words": [...]}]}``
-      (Whisper);
+      (Whisper with word timestamps); Whisper segments without words are spread over their words (below);
     * Google STT: ``{"results": [{"alternatives": [{"words": [...]}]}]}`` or a bare list of
       ``{"alternatives": [...]}`` (the first alternative is used).
 
@@ -32,10 +32,12 @@ import csv
 import json
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from robogest.errors import InputError
 from robogest.speech.types import Word
@@ -166,17 +168,24 @@ def _read_textgrid(p: Path) -> Transcript:
 
 
 def _timed(entries: Sequence[tuple[float, float, str]], p: Path) -> Transcript:
-    """Build timed words from (start, end, label), dropping pauses and punctuation-only labels."""
+    """Build timed words from (start, end, label), dropping pauses and punctuation-only labels.
+
+    A label of several words (a segment-level transcript, e.g. Whisper without word timestamps) is spread over
+    its span in proportion to the words' syllable counts, as :func:`spread_words` does for untimed text.
+    """
     words: list[Word] = []
     for start, end, label in entries:
         if label.strip().lower() in PAUSE_LABELS:
             continue
-        text = " ".join(tokenize(label))
-        if not text:
+        tokens = tokenize(label)
+        if not tokens:
             continue
         if not (math.isfinite(start) and math.isfinite(end)):
             raise InputError(f"transcript {p}: word {label!r} has a non-finite time")
-        words.append(Word(text=text, start_s=start, end_s=end, syllables=sum(map(count_syllables, text.split()))))
+        syllables = [count_syllables(tok) for tok in tokens]
+        edges = start + (end - start) * np.concatenate([[0.0], np.cumsum(syllables)]) / sum(syllables)
+        for tok, n, a, b in zip(tokens, syllables, edges[:-1], edges[1:], strict=True):
+            words.append(Word(text=tok, start_s=float(a), end_s=float(b), syllables=n))
     if not words:
         raise InputError(f"transcript {p}: no timed words found")
     words.sort(key=lambda w: (w.start_s, w.end_s))
@@ -203,8 +212,10 @@ def _first_key(d: dict[str, Any], keys: Sequence[str]) -> Any:
 
 
 def _is_word_obj(obj: Any) -> bool:
+    """A dict with a text and a span, and no ``words`` of its own (a Whisper segment with words is not a word)."""
     return (
         isinstance(obj, dict)
+        and not isinstance(obj.get("words"), list)
         and _first_key(obj, _WORD_KEYS) is not None
         and _first_key(obj, _START_KEYS) is not None
         and _first_key(obj, _END_KEYS) is not None
@@ -270,33 +281,49 @@ def _parse_table(raw: str, p: Path, delimiter: str) -> Transcript:
 
 
 def validate_words(
-    words: Sequence[Word], duration_s: float, source: str, tolerance_s: float = 0.05
+    words: Sequence[Word],
+    duration_s: float,
+    source: str,
+    tolerance_s: float = 0.05,
+    skip: Callable[[str], None] | None = None,
 ) -> tuple[Word, ...]:
     """Check timed words against the audio; return them ready for analysis.
 
     Words must start at >= 0, not overlap the previous word and lie within the audio. Ends up to
     ``tolerance_s`` past the audio (rounding in aligners) are clipped; zero-length words are widened
-    to 10 ms where the next word leaves room. Anything else is an :class:`InputError`.
+    to 10 ms where the next word leaves room. Anything else is an :class:`InputError`, or, with ``skip``
+    (datasets, where one bad word must not lose a recording), a message to ``skip`` and the word dropped.
     """
     out: list[Word] = []
     ws = sorted(words, key=lambda w: (w.start_s, w.end_s))
+
+    def bad(message: str) -> None:
+        if skip is None:
+            raise InputError(message)
+        skip(message)
+
     for i, w in enumerate(ws):
         where = f"{source}: word #{i + 1} {w.text!r} ({w.start_s:.3f}-{w.end_s:.3f} s)"
         if w.start_s < 0.0:
-            raise InputError(f"{where} starts before 0 s; transcript cannot be aligned")
+            bad(f"{where} starts before 0 s; transcript cannot be aligned")
+            continue
         if w.end_s < w.start_s:
-            raise InputError(f"{where} ends before it starts; transcript cannot be aligned")
+            bad(f"{where} ends before it starts; transcript cannot be aligned")
+            continue
         if w.start_s >= duration_s or w.end_s > duration_s + tolerance_s:
-            raise InputError(f"{where} lies beyond the audio's end ({duration_s:.3f} s); wrong transcript?")
+            bad(f"{where} lies beyond the audio's end ({duration_s:.3f} s); wrong transcript?")
+            continue
         if out and w.start_s < out[-1].end_s - 1e-6:
-            raise InputError(f"{where} overlaps the previous word {out[-1].text!r}; transcript cannot be aligned")
+            bad(f"{where} overlaps the previous word {out[-1].text!r}; transcript cannot be aligned")
+            continue
         start = max(w.start_s, out[-1].end_s) if out else w.start_s
         end = min(w.end_s, duration_s)
         if end - start < _MIN_WORD_S:
             limit = ws[i + 1].start_s if i + 1 < len(ws) else duration_s
             end = min(start + _MIN_WORD_S, limit, duration_s)
             if end <= start:
-                raise InputError(f"{where} has no duration and no room to widen it")
+                bad(f"{where} has no duration and no room to widen it")
+                continue
         out.append(Word(text=w.text, start_s=float(start), end_s=float(end), syllables=max(1, int(w.syllables))))
     return tuple(out)
 

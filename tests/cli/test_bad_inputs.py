@@ -460,7 +460,7 @@ def _crafted_checkpoint(path: Path, numel: int) -> None:
 
 def _config_mismatch_checkpoint(path: Path) -> None:
     """A gesticulator checkpoint whose config asks for 100 000-wide layers while its weights are the small ones."""
-    from robogest.generators.gesticulator import GesticulatorConfig, GesticulatorNet
+    from robogest.generators.learned.gesticulator import GesticulatorConfig, GesticulatorNet
     from robogest.learn.checkpoint import make_checkpoint, save_checkpoint
 
     cfg = GesticulatorConfig(n_acoustic=4, n_text=4, n_pose=6)

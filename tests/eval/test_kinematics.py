@@ -72,9 +72,19 @@ def test_maje_mad_constant_offset_and_truncation():
     gt = sine_motion(0.1, 1.0, 2.0)
     pred = gt + np.array([0.03, 0.04, 0.0])  # 5 cm away everywhere, same acceleration
     r = maje_mad(pred[:-10], gt, FPS)
-    assert r["maje_mm"] == pytest.approx(50.0)
-    assert r["mad_mm_s2"] == pytest.approx(0.0, abs=1e-6)
+    assert r["maje_mm"] == pytest.approx((30.0 + 40.0 + 0.0) / 3)  # mean |difference| over x, y, z (reference)
+    assert r["mad_mm_per_frame2"] == pytest.approx(0.0, abs=1e-6)
     assert r["dropped_frames"] == 10 and r["n_frames"] == gt.shape[0] - 10
+
+
+def test_mad_is_per_frame_squared_on_coordinates():
+    """A constant extra acceleration of a mm/frame² along x: second difference a on x, 0 on y and z, at any fps."""
+    gt = sine_motion(0.1, 1.0, 2.0)
+    t = np.arange(gt.shape[0], dtype=float)[:, None]
+    pred = gt.copy()
+    pred[..., 0] += 0.5 * 0.006 * t**2  # 6 mm/frame² on x
+    for fps in (FPS, 2 * FPS):
+        assert maje_mad(pred, gt, fps)["mad_mm_per_frame2"] == pytest.approx(6.0 / 3, rel=1e-6)
 
 
 def test_maje_rejects_different_skeletons():

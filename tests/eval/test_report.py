@@ -33,3 +33,16 @@ def test_to_jsonable_nan_to_null():
         "b": 2.5,
         "c": [None],
     }
+
+
+def test_fd_is_reported_beside_its_real_vs_real_noise_floor():
+    """FD_k/FD_g come with the distance between the real motion's two halves, below which they mean nothing."""
+    from robogest.eval.report import evaluate_motion, real_vs_real
+
+    rng = np.random.default_rng(0)
+    gt = np.cumsum(rng.normal(0, 0.002, (400, 3, 3)), axis=0)  # (T, J, 3) random walk, metres
+    pred = np.cumsum(rng.normal(0, 0.004, (400, 3, 3)), axis=0)
+    r = evaluate_motion(pred, 20.0, ["a", "b", "c"], gt)
+    floor = real_vs_real(gt, 20.0)
+    assert r["features_noise_floor"] == floor
+    assert np.isfinite(floor["fd_geometric"]) and floor["fd_geometric"] > 0  # two halves of one take differ

@@ -192,3 +192,44 @@ def test_spread_word_straddling_a_pause_keeps_larger_part():
 def test_spread_without_regions_is_input_error():
     with pytest.raises(InputError, match="no voiced region"):
         spread_words(["hello"], [], "clip.wav")
+
+
+def test_whisper_word_level_json_gives_its_words_not_its_segments(tmp_path: Path):
+    """Whisper with word timestamps: 2 segments carrying 8 words are 8 words."""
+
+    def seg(s, e, ws):
+        return {
+            "start": s,
+            "end": e,
+            "text": " ".join(w for w, _, _ in ws),
+            "words": [{"word": f" {w}", "start": a, "end": b, "probability": 0.9} for w, a, b in ws],
+        }
+
+    data = {"text": "...", "segments": [
+        seg(0.0, 1.6, [("Hello", 0.0, 0.4), ("there,", 0.4, 0.8), ("my", 0.9, 1.1), ("friend.", 1.1, 1.6)]),
+        seg(2.0, 3.6, [("How", 2.0, 2.3), ("are", 2.3, 2.6), ("you", 2.6, 3.0), ("today?", 3.0, 3.6)]),
+    ], "language": "en"}  # fmt: skip
+    p = tmp_path / "w.json"
+    p.write_text(json.dumps(data))
+    tr = read_transcript(p)
+    assert [w.text for w in tr.words] == ["hello", "there", "my", "friend", "how", "are", "you", "today"]
+    assert (tr.words[1].start_s, tr.words[1].end_s) == (0.4, 0.8)
+
+
+def test_segment_level_json_is_spread_over_its_words_by_syllables(tmp_path: Path):
+    p = tmp_path / "s.json"
+    p.write_text(json.dumps({"segments": [{"id": 0, "start": 1.0, "end": 2.0, "text": " Hello robot"}]}))
+    words = read_transcript(p).words
+    assert [w.text for w in words] == ["hello", "robot"]
+    assert words[0].start_s == 1.0 and words[-1].end_s == pytest.approx(2.0)
+    assert words[0].end_s == pytest.approx(words[1].start_s) == pytest.approx(1.5)  # 2 + 2 syllables
+
+
+def test_validate_words_can_skip_bad_words_instead_of_raising():
+    ws = [Word("a", 0.0, 0.5, 1), Word("b", 0.5, 0.5, 1), Word("c", 0.5, 0.9, 1), Word("d", 3.0, 3.2, 1)]
+    with pytest.raises(InputError, match=r"'b'.*no duration"):
+        validate_words(ws, 2.0, "t")
+    skipped: list[str] = []
+    out = validate_words(ws, 2.0, "t", skip=skipped.append)
+    assert [w.text for w in out] == ["a", "c"] and len(skipped) == 2
+    assert "'b'" in skipped[0] and "beyond the audio" in skipped[1]

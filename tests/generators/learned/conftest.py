@@ -45,7 +45,8 @@ def fixture_data(tmp_path_factory) -> Path:
 def trained(fixture_data, tmp_path_factory):
     """``(TrainConfig, best checkpoint path)`` after a short overfit run on all takes (no validation split)."""
     pytest.importorskip("torch")
-    from robogest.learn.trainer import TrainConfig, train
+    from robogest.generators.learned import train_model
+    from robogest.learn.trainer import TrainConfig
 
     out = tmp_path_factory.mktemp("run")
     cfg = TrainConfig(
@@ -61,5 +62,5 @@ def trained(fixture_data, tmp_path_factory):
         model_overrides=SMALL_MODEL,
         **HASH16,
     )
-    best = train(cfg, log=lambda s: None)
+    best = train_model(cfg, log=lambda s: None)
     return cfg, best

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -143,3 +144,118 @@ def test_beat2_sample_reads(shared_data, tmp_path):
     assert abs(take.n_frames - 63.53 * 20) <= 2  # trimmed to the motion, which ends first
     assert (take.text != -15.0).any(axis=1).mean() > 0.5  # mostly speech
     assert take.poses.std(axis=0).max() > 0.05
+
+
+def _words_json(words) -> str:
+    import json
+
+    return json.dumps({"words": [{"word": w, "start_time": f"{a}s", "end_time": f"{b}s"} for w, a, b in words]})
+
+
+def test_a_malformed_word_skips_that_word_and_a_bad_take_skips_that_take(tmp_path):
+    """One warning line each; the run goes on with the rest (a zero-length Google STT word used to abort it)."""
+    root = make_fixture_dataset(tmp_path / "d", n_takes=3, duration_s=3.0)
+    (root / "take_000.json").write_text(_words_json([("hi", 0.5, 0.8), ("there", 1.0, 1.0), ("you", 1.0, 1.4)]))
+    (root / "take_001.json").write_text("{not json")
+    lines: list[str] = []
+    takes = load_dataset(root, CFG, tmp_path / "cache", warn=lines.append)
+    assert [t.name for t in takes] == ["take_000", "take_002"]
+    assert len(lines) == 2
+    assert lines[0].startswith("take_000: skipped 1 malformed word(s)") and "'there'" in lines[0]
+    assert lines[1].startswith("take_001: take skipped") and "invalid JSON" in lines[1]
+    assert "\n" not in "".join(lines)
+    (root / "take_000.json").write_text("{not json")
+    (root / "take_002.json").write_text("{not json")
+    with pytest.raises(InputError, match=r"no take could be read; first problem: .*take_000\.json"):
+        load_dataset(root, CFG, tmp_path / "cache2", warn=lines.append)
+
+
+def test_tsv_transcripts_are_read(tmp_path):
+    root = make_fixture_dataset(tmp_path / "d", n_takes=1, duration_s=3.0)
+    (root / "take_000.json").unlink()
+    (root / "take_000.tsv").write_text("start\tend\tword\n0.5\t0.9\thello\n1.0\t1.5\trobot\n")
+    files = discover_takes(root)[0]
+    assert files.transcript is not None and files.transcript.suffix == ".tsv"
+    take = load_dataset(root, CFG, tmp_path / "cache")[0]
+    words = np.any(take.text > -15.0 + 1e-3, axis=1)  # frames inside a word
+    assert words[12] and words[25] and not words[5] and not words[40]
+
+
+def test_a_take_longer_than_600_s_trains(tmp_path):
+    """GENEA 2020 takes are about 10 min; the speech front-end's 600 s guard is for interactive input only."""
+    import soundfile as sf
+
+    src = make_fixture_dataset(tmp_path / "src", n_takes=1, duration_s=5.0, motion_format="npz")
+    audio, sr = sf.read(src / "take_000.wav", dtype="float32")
+    z = dict(np.load(src / "take_000.npz"))
+    reps = 121  # 605 s
+    root = tmp_path / "long"
+    root.mkdir()
+    sf.write(root / "long.wav", np.tile(audio, reps), sr)
+    np.savez(root / "long.npz", poses=np.tile(z["poses"], (reps, 1)), trans=np.tile(z["trans"], (reps, 1)),
+             mocap_frame_rate=z["mocap_frame_rate"])  # fmt: skip
+    (take,) = load_dataset(root, CFG, tmp_path / "cache", warn=pytest.fail)
+    assert take.n_frames >= 605 * 20 - 1 and np.isfinite(take.acoustic).all()
+
+
+def test_beat2_official_split_is_used(tmp_path):
+    root = make_fixture_dataset(tmp_path / "b", n_takes=4, duration_s=3.0, motion_format="npz", layout="beat2")
+    names = [f.name for f in discover_takes(root)]
+    (root / ds.SPLIT_FILE).write_text(
+        f"id,type\n{names[0]},train\n{names[1]},val\n{names[2]},test\n{names[3]},additional\n"
+    )
+    lines: list[str] = []
+    takes = load_dataset(root, CFG, tmp_path / "cache", warn=lines.append)
+    assert [t.name for t in takes] == [names[0], names[1], names[3]]  # the test take is never loaded
+    assert lines == [f"{ds.SPLIT_FILE}: official split used, 1 test (or unlisted) take(s) left out"]
+    train, val = split_takes(takes, 0.5, 0, ds.official_split(root))
+    assert [t.name for t in train] == [names[0], names[3]] and [t.name for t in val] == [names[1]]
+    (root / ds.SPLIT_FILE).write_text("name,split\nx,train\n")
+    with pytest.raises(InputError, match="expected the columns id,type"):
+        ds.official_split(root)
+
+
+_LAZY_SCRIPT = """
+import resource, sys
+import numpy as np
+from robogest.data.prep import slice_windows
+
+def vm_bytes():
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmSize:"))
+
+limit = vm_bytes() + 300 * 2**20  # what this process allows itself from here on
+resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+length, d, n_takes, frames = 70, 256, 8, 4000  # 8 takes: 33 MB of frames, 2.2 GB of windows at stride 1
+
+def take(i):
+    rng = np.random.default_rng(i)
+    return rng.standard_normal((frames, d), dtype=np.float32)
+
+x, y, idx = slice_windows(((i, take(i), take(i)[:, :3]) for i in range(n_takes)), length, 1, d, 3)
+assert len(x) == n_takes * (frames - length + 1)
+assert len(x) * length * d * 4 > 6 * 300 * 2**20  # stored whole: 6 times the allowance
+rng = np.random.default_rng(0)
+for _ in range(20):
+    b = rng.integers(0, len(x), 64)
+    xb = x[b]
+    i, s = idx[b[0]], b[0] - idx[b[0]] * (frames - length + 1)
+    assert xb.shape == (64, length, d) and np.array_equal(xb[0], take(i)[s : s + length])
+try:
+    np.stack([x[k] for k in range(0, len(x), 1)])
+except MemoryError:
+    print("ok")
+"""
+
+
+def test_training_windows_are_read_lazily_from_disk_within_a_memory_limit():
+    """Windows bigger than the memory the process allows itself are built and read batch by batch; stacking them
+    (the old in-memory way) fails under the same limit."""
+    import subprocess
+    import sys
+
+    if not os.path.exists("/proc/self/status"):
+        pytest.skip("needs /proc (Linux) to set the limit relative to the process size")
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}  # this checkout's robogest
+    r = subprocess.run([sys.executable, "-c", _LAZY_SCRIPT], capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr[-2000:]

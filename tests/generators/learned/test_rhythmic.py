@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
 torch = pytest.importorskip("torch")
 
 from robogest.data import FeatureConfig, discover_takes, load_take  # noqa: E402
-from robogest.data.blocks import (  # noqa: E402
+from robogest.data.fixtures import FIXTURE_GESTURE  # noqa: E402
+from robogest.data.prep import Normalization  # noqa: E402
+from robogest.errors import InputError  # noqa: E402
+from robogest.generators.learned.rhythmic.blocks import (  # noqa: E402
     block_fraction,
     clip_bounds,
     denormalize_blocks,
@@ -16,10 +21,8 @@ from robogest.data.blocks import (  # noqa: E402
     resample_clip,
     tsm_mel_blocks,
 )
-from robogest.data.fixtures import FIXTURE_GESTURE  # noqa: E402
-from robogest.data.prep import Normalization  # noqa: E402
 from robogest.motion.skeleton import CANONICAL  # noqa: E402
-from tests.learn.conftest import HASH16, RHYTHMIC_SMALL  # noqa: E402
+from tests.generators.learned.conftest import HASH16, RHYTHMIC_SMALL  # noqa: E402
 
 SMALL = RHYTHMIC_SMALL
 K = 10  # D_M = 0.5 s at 20 fps
@@ -40,14 +43,15 @@ def takes_and_speech(fixture_data, tmp_path_factory):
 def rhythmic_run(fixture_data, tmp_path_factory):
     """Best checkpoint of one short overfit run on the fixture (no validation split): the four stages one after
     another (4 + 6 + 11 + 9 epochs)."""
-    from robogest.learn.trainer import TrainConfig, train
+    from robogest.generators.learned import train_model
+    from robogest.learn.trainer import TrainConfig
 
     out = tmp_path_factory.mktemp("rrun")
     cfg = TrainConfig(
         model="rhythmic", data=str(fixture_data), out=str(out), epochs=30, lr=2e-3, batch_size=8, window_stride=6,
         val_fraction=0.0, device="cpu", cache_dir=str(out / "cache"), model_overrides=SMALL, **HASH16,
     )  # fmt: skip
-    return train(cfg, log=lambda s: None)
+    return train_model(cfg, log=lambda s: None)
 
 
 def _moving(poses: np.ndarray) -> np.ndarray:
@@ -139,7 +143,7 @@ def _no_words(take):
 def test_take_without_words_yields_silent_and_speech_blocks(takes_and_speech):
     """Without any transcript the training windows still mark silent blocks (mostly quiet, §6.4.1) and speech
     blocks; with the transcript a block is silent exactly when it overlaps no word."""
-    from robogest.generators.rhythmic_learned import SPEC, RhythmicConfig, RhythmicNet, take_rhythm
+    from robogest.generators.learned.rhythmic import SPEC, RhythmicConfig, RhythmicNet, take_rhythm
 
     takes = [t for t, _ in takes_and_speech]
     norm = Normalization.fit(takes)
@@ -149,8 +153,8 @@ def test_take_without_words_yields_silent_and_speech_blocks(takes_and_speech):
     length = cfg.window_blocks * K
     for t in (take, _no_words(take)):
         x, y, _ = SPEC.make_windows([t], norm, cfg, length, 30)
-        assert x.shape[1:] == (length, cfg.n_mels + cfg.n_text + 1) and y.shape[1:] == (length, cfg.n_pose)
-        empty = net.segment(torch.from_numpy(x), torch.from_numpy(y)).empty.numpy()
+        assert x.shape[1:] == (length, cfg.n_mels + cfg.n_text + 2) and y.shape[1:] == (length, cfg.n_pose)
+        empty = net.segment(torch.from_numpy(x[:]), torch.from_numpy(y[:])).empty.numpy()
         assert empty.any() and not empty.all(), empty.mean()
     mel = norm.acoustic(take.acoustic)[:, :64]
     bounds, silent = take_rhythm(mel, take.acoustic[:, :64], _no_words(take).text, cfg)
@@ -166,7 +170,7 @@ def test_take_without_words_yields_silent_and_speech_blocks(takes_and_speech):
 
 # ------------------------------------------------------------------------------------------------ lexicon
 def test_vq_vae_reconstruction_falls_and_codebook_is_used(takes_and_speech):
-    from robogest.generators.rhythmic_learned import MotionVQ, RhythmicConfig
+    from robogest.generators.learned.rhythmic import MotionVQ, RhythmicConfig
 
     takes = [t for t, _ in takes_and_speech]
     norm = Normalization.fit(takes)
@@ -193,10 +197,14 @@ def test_vq_vae_reconstruction_falls_and_codebook_is_used(takes_and_speech):
 
 # ------------------------------------------------------------------------------------------------ trained model
 def _gt_codes(gen, take, speech):
-    from robogest.generators.rhythmic_learned import take_rhythm
+    from robogest.generators.learned.rhythmic import take_rhythm
+    from robogest.generators.learned.rhythmic.take import take_beats
 
-    bounds, _ = take_rhythm(gen.norm.acoustic(take.acoustic)[:, :64], take.acoustic[:, :64], take.text, gen.config)
-    assert np.array_equal(bounds, gen.generate_blocks(speech).bounds)
+    beats = take_beats(take.read_audio(gen.config.audio_sr), gen.config)  # how training cuts a cached take
+    mel = gen.norm.acoustic(take.acoustic)[:, :64]
+    bounds, _ = take_rhythm(mel, take.acoustic[:, :64], take.text, gen.config, beats)
+    assert np.array_equal(bounds, gen.generate_blocks(speech).bounds)  # one rule: the speech front-end's beats
+    assert np.array_equal(bounds, clip_bounds(speech.beats_s, take.n_frames, 20.0))
     pb = torch.from_numpy(normalize_clips(gen.norm.pose(take.poses), bounds, K))
     with torch.no_grad():
         idx = gen.model.vq.quantize(gen.model.vq.encode(pb))
@@ -210,7 +218,7 @@ def test_generator_overfits_a_training_take(rhythmic_run, takes_and_speech):
     RMSE on the moving joints below 0.7x their standard deviation (the mean pose scores 1.0x; measured 0.37-0.62x
     over runs), with the blocks chained on the model's own previous blocks and denormalised.
     """
-    from robogest.generators.rhythmic_learned import RhythmicGenerator
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
 
     gen = RhythmicGenerator(rhythmic_run)
     take, speech = takes_and_speech[0]
@@ -225,7 +233,7 @@ def test_generator_overfits_a_training_take(rhythmic_run, takes_and_speech):
 
 def test_interpreter_picks_the_silent_lexeme_in_silent_blocks(rhythmic_run, takes_and_speech):
     """Without the run-time hint, the learned interpreter itself chooses silent lexemes on empty-word blocks."""
-    from robogest.generators.rhythmic_learned import RhythmicGenerator
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
 
     gen = RhythmicGenerator(rhythmic_run)
     silent = gen.model.silent_mask().numpy()
@@ -251,7 +259,7 @@ def test_inference_blocks_equal_training_blocks(rhythmic_run, takes_and_speech, 
     the audio blocks are the same time-scaled audio: both go through take_blocks (take_rhythm, tsm_mel_blocks)."""
     import dataclasses
 
-    from robogest.generators.rhythmic_learned import SPEC, RhythmicGenerator, take_blocks
+    from robogest.generators.learned.rhythmic import SPEC, RhythmicGenerator, take_blocks
 
     gen = RhythmicGenerator(rhythmic_run)
     c = gen.config
@@ -272,13 +280,13 @@ def test_inference_blocks_equal_training_blocks(rhythmic_run, takes_and_speech, 
     w = c.window_blocks
     np.testing.assert_allclose(x[0, :, :64], train_blocks.mel[:w].reshape(w * K, 64), atol=1e-6)
     np.testing.assert_allclose(y[0], train_blocks.poses[:w].reshape(w * K, -1), atol=1e-6)
-    np.testing.assert_array_equal(x[0, ::K, -1] > 0.5, train_blocks.silent[:w])
+    np.testing.assert_array_equal(x[0, ::K, -2] > 0.5, train_blocks.silent[:w])
 
 
 def test_lexeme_entropy_and_pmb_from_generated_blocks(rhythmic_run, takes_and_speech):
     """The evaluation metrics of §7.3 (robogest.eval) run on the generator's output."""
     from robogest.eval import lexeme_entropy, motion_beats, pmb
-    from robogest.generators.rhythmic_learned import RhythmicGenerator
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
 
     gen = RhythmicGenerator(rhythmic_run)
     _, speech = takes_and_speech[1]
@@ -292,13 +300,13 @@ def test_lexeme_entropy_and_pmb_from_generated_blocks(rhythmic_run, takes_and_sp
 
 def test_train_cli_and_generate_text_and_audio_only(fixture_data, tmp_path):
     """`robogest train --model rhythmic --set ...` (paper widths, one epoch per stage) writes a checkpoint; it
-    generates on text and audio-only speech with exactly the speech's frames, the same for the same seed and
-    different for another seed."""
+    generates on text and audio-only speech with exactly the speech's frames; by default the most likely lexeme
+    (the seed does not matter), with a lexeme temperature the same for the same seed and different for another."""
     import dataclasses
     import json
 
     from robogest.cli.main import main
-    from robogest.generators.rhythmic_learned import RhythmicGenerator
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
     from robogest.learn.checkpoint import load_checkpoint
     from robogest.speech import synthesize
 
@@ -318,19 +326,24 @@ def test_train_cli_and_generate_text_and_audio_only(fixture_data, tmp_path):
     assert ckpt["train_state"]["next_epoch"] == 4  # best.pt comes from the last stage, when every part is trained
     assert ckpt["train_state"]["optimizers"]["optimizer"]["param_groups"][0]["lr"] == 3e-4  # the paper's, no --lr
     gen = RhythmicGenerator(out / "best.pt")
+    sampling = RhythmicGenerator(out / "best.pt", lexeme_temperature=1.0)
     speech = synthesize("Hello there, I am a robot ... and I wave.")
     for sp in (speech, dataclasses.replace(speech, words=())):
         motion = gen.generate(sp, seed=1)
         assert motion.n_frames == sp.n_frames and motion.fps == sp.fps
         assert np.isfinite(motion.rotations).all()
-        np.testing.assert_array_equal(gen.generate(sp, seed=1).rotations, motion.rotations)
+        np.testing.assert_array_equal(gen.generate(sp, seed=2).rotations, motion.rotations)  # most likely lexeme
+        sampled = sampling.generate(sp, seed=1)
+        np.testing.assert_array_equal(sampling.generate(sp, seed=1).rotations, sampled.rotations)
         # the seed drives the lexeme sampling: another seed gives other lexemes, hence other motion
-        assert not np.array_equal(gen.generate(sp, seed=2).rotations, motion.rotations)
+        assert not np.array_equal(sampling.generate(sp, seed=2).rotations, sampled.rotations)
+    with pytest.raises(InputError, match="lexeme_temperature=-1"):
+        RhythmicGenerator(out / "best.pt", lexeme_temperature=-1)
 
 
 def test_bad_options_and_missing_checkpoint_are_input_errors(tmp_path):
     from robogest.errors import InputError
-    from robogest.generators.rhythmic_learned import SPEC, RhythmicGenerator
+    from robogest.generators.learned.rhythmic import SPEC, RhythmicGenerator
 
     with pytest.raises(InputError, match="unknown rhythmic option"):
         SPEC.make_config(69, 16, 51, {"nope": 1})
@@ -346,7 +359,7 @@ def test_bad_options_and_missing_checkpoint_are_input_errors(tmp_path):
 
 def test_paper_widths_are_the_defaults():
     """§5.3 and §7.1.2: H = 64, C = 128, d_m~ = d_a~ = 128, d_s = 192, d_z = d_P = 32, N_s = 50, lr 3e-4, D_M 0.5 s."""
-    from robogest.generators.rhythmic_learned import RhythmicConfig
+    from robogest.generators.learned.rhythmic import RhythmicConfig
 
     c = RhythmicConfig()
     got = (c.latent_groups, c.latent_classes, c.motion_feat_dim, c.audio_feat_dim, c.lexeme_dim, c.style_dim,
@@ -356,7 +369,7 @@ def test_paper_widths_are_the_defaults():
 
 def test_plan_epochs_gives_every_stage_its_share():
     from robogest.errors import InputError
-    from robogest.generators.rhythmic_learned import SPEC
+    from robogest.generators.learned.rhythmic import SPEC
 
     def ends(epochs, **kw):
         return SPEC.plan_epochs(SPEC.make_config(69, 16, 51, kw), epochs).stage_ends
@@ -377,7 +390,7 @@ def test_plan_epochs_gives_every_stage_its_share():
 
 def test_each_sequential_stage_trains_only_its_own_part(takes_and_speech):
     """In training mode the loss at an epoch of stage X gives gradients to X's parameters and to nothing else."""
-    from robogest.generators.rhythmic_learned import SPEC, STAGES, RhythmicNet
+    from robogest.generators.learned.rhythmic import SPEC, STAGES, RhythmicNet
 
     takes = [t for t, _ in takes_and_speech]
     norm = Normalization.fit(takes)
@@ -405,15 +418,80 @@ def test_resumed_run_keeps_its_stage_plan(fixture_data, tmp_path):
     """A run resumed with more epochs keeps the checkpoint's stage plan: the extra epochs train the interpreters."""
     import json
 
+    from robogest.generators.learned import train_model
     from robogest.learn.checkpoint import load_checkpoint
-    from robogest.learn.trainer import TrainConfig, train
+    from robogest.learn.trainer import TrainConfig
 
     kw = dict(
         model="rhythmic", data=str(fixture_data), out=str(tmp_path / "r"), batch_size=16, window_stride=20,
         val_fraction=0.0, device="cpu", cache_dir=str(tmp_path / "c"), model_overrides=SMALL, **HASH16,
     )  # fmt: skip
-    train(TrainConfig(epochs=4, **kw), log=lambda s: None)
-    best = train(TrainConfig(epochs=6, resume=True, **kw), log=lambda s: None)
+    train_model(TrainConfig(epochs=4, **kw), log=lambda s: None)
+    best = train_model(TrainConfig(epochs=6, resume=True, **kw), log=lambda s: None)
     history = json.loads((tmp_path / "r" / "history.json").read_text())
     assert [h["stage"] for h in history] == ["encoder", "lexicon", "generator"] + ["interpreters"] * 3
     assert list(load_checkpoint(best)["model_config"]["stage_ends"]) == [1, 2, 3, 4]
+
+
+def test_generator_trains_on_a_rollout_with_its_state_carried_over(takes_and_speech):
+    """Generator stage (as the authors' code): within a window each block is generated from the previous generated
+    block and the LSTM state after it; only the window's first block is ground truth. Eval (validation) runs the
+    same free rollout."""
+    from robogest.generators.learned.rhythmic import SPEC, RhythmicNet
+
+    takes = [t for t, _ in takes_and_speech]
+    norm = Normalization.fit(takes)
+    cfg = SPEC.plan_epochs(SPEC.make_config(69, takes[0].text.shape[1], 51, {**SMALL, "silent_augment": 0.0}), 4)
+    x, y, _ = SPEC.make_windows(takes, norm, cfg, cfg.window_blocks * K, 20)
+    xb, yb = torch.from_numpy(x[:3]), torch.from_numpy(y[:3])
+    torch.manual_seed(0)
+    net = RhythmicNet(cfg)
+    calls = []
+    real = net.gen.forward
+
+    def spy(prev, a3, s, z, state=None, speaker=None):
+        out, new_state = real(prev, a3, s, z, state, speaker)
+        calls.append((prev, state, out, new_state))
+        return out, new_state
+
+    net.gen.forward = spy
+    for mode in (net.train, net.eval):
+        mode()
+        calls.clear()
+        with torch.no_grad():
+            net(xb, yb, epoch=2)  # the generator stage in training; all stages in eval
+        chain = calls[: cfg.window_blocks - 2]  # the rollout; then eq. 12's one-step call
+        assert len(calls) == cfg.window_blocks - 1
+        first = yb.reshape(3 * cfg.window_blocks, K, -1)[:: cfg.window_blocks]
+        torch.testing.assert_close(chain[0][0], first)  # starts from each window's ground-truth context block
+        assert chain[0][1] is None
+        for (_, _, out, st), (prev, state, _, _) in itertools.pairwise(chain):
+            assert prev is out and state is st  # its own output and LSTM state go on
+
+
+def test_speaker_identity_conditions_the_generator(takes_and_speech):
+    """The speaker table comes from the take names (BEAT2's speaker numbers), every window carries its speaker,
+    and the generator's motion depends on the speaker chosen at run time."""
+    import dataclasses
+
+    from robogest.data import FeatureConfig
+    from robogest.generators.learned.rhythmic import SPEC, RhythmicGenerator, RhythmicNet
+
+    takes = [dataclasses.replace(t, name=f"{i + 1}_spk_0_1_1") for i, (t, _) in enumerate(takes_and_speech[:2])]
+    norm = Normalization.fit(takes)
+    cfg = SPEC.fit_config(SPEC.make_config(69, takes[0].text.shape[1], 51, SMALL), takes)
+    assert cfg.speakers == ("1", "2")
+    x, _, idx = SPEC.make_windows(takes, norm, cfg, cfg.window_blocks * K, 20)
+    np.testing.assert_array_equal(x[:][:, 0, -1], idx)  # take i is speaker i
+    torch.manual_seed(0)
+    net = RhythmicNet(cfg)
+    speech = takes_and_speech[0][1]
+    feats = FeatureConfig(**HASH16)
+    a = RhythmicGenerator.from_model(net, feats, norm, speaker="1").generate_blocks(speech).poses
+    b = RhythmicGenerator.from_model(net, feats, norm, speaker=1).generate_blocks(speech).poses
+    assert not np.allclose(a, b)
+    with pytest.raises(InputError, match=r"speaker '7' is not one of the model's speakers \['1', '2'\]"):
+        RhythmicGenerator.from_model(net, feats, norm, speaker="7")
+    old = dataclasses.asdict(cfg)
+    del old["speakers"], old["speaker_dim"]
+    assert type(cfg).from_dict(old).speaker_dim == 0  # a checkpoint from before loads without the embedding

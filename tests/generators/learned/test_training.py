@@ -15,7 +15,7 @@ torch = pytest.importorskip("torch")
 from robogest.data import FeatureConfig, discover_takes, load_take  # noqa: E402
 from robogest.data.fixtures import FIXTURE_GESTURE  # noqa: E402
 from robogest.motion.skeleton import CANONICAL  # noqa: E402
-from tests.learn.conftest import HASH16, RHYTHMIC_SMALL, SMALL_MODEL  # noqa: E402
+from tests.generators.learned.conftest import HASH16, RHYTHMIC_SMALL, SMALL_MODEL  # noqa: E402
 
 
 def _history(cfg) -> list[dict]:
@@ -42,7 +42,7 @@ def test_overfit_reproduces_training_clip(trained, fixture_data):
     84% of the motion's variance from the speech; fully autoregressive generation (no ground truth at all) must
     get there, not just a teacher-forced forward pass.
     """
-    from robogest.generators.gesticulator import GesticulatorGenerator
+    from robogest.generators.learned.gesticulator import GesticulatorGenerator
 
     _, best = trained
     gen = GesticulatorGenerator(best)
@@ -63,7 +63,7 @@ def test_overfit_reproduces_training_clip(trained, fixture_data):
 def test_checkpoint_round_trip(trained, fixture_data):
     """Generating from the loaded .pt equals generating from the in-memory model the checkpoint was made from."""
     from robogest.data.prep import Normalization
-    from robogest.generators.gesticulator import GesticulatorConfig, GesticulatorGenerator, GesticulatorNet
+    from robogest.generators.learned.gesticulator import GesticulatorConfig, GesticulatorGenerator, GesticulatorNet
     from robogest.learn.checkpoint import load_checkpoint, normalization_arrays
 
     _, best = trained
@@ -94,7 +94,7 @@ def test_make_generator_end_to_end(trained):
 
         @register_generator("gesticulator")
         def _factory(**kwargs):
-            from robogest.generators.gesticulator import GesticulatorGenerator
+            from robogest.generators.learned.gesticulator import GesticulatorGenerator
 
             return GesticulatorGenerator(**kwargs)
 
@@ -111,8 +111,9 @@ def test_make_generator_end_to_end(trained):
 
 def test_resume_continues_and_is_deterministic(fixture_data, tmp_path):
     """2 epochs + resume to 3 equals 3 epochs straight (same seed): same history, same weights."""
+    from robogest.generators.learned import train_model
     from robogest.learn.checkpoint import load_checkpoint
-    from robogest.learn.trainer import TrainConfig, train
+    from robogest.learn.trainer import TrainConfig
 
     def cfg(out: Path, epochs: int, resume: bool = False) -> TrainConfig:
         return TrainConfig(
@@ -121,9 +122,9 @@ def test_resume_continues_and_is_deterministic(fixture_data, tmp_path):
             model_overrides={**SMALL_MODEL, "pretrain_epochs": 1}, **HASH16,
         )  # fmt: skip
 
-    train(cfg(tmp_path / "a", 2), log=lambda s: None)
-    train(cfg(tmp_path / "a", 3, resume=True), log=lambda s: None)
-    train(cfg(tmp_path / "b", 3), log=lambda s: None)
+    train_model(cfg(tmp_path / "a", 2), log=lambda s: None)
+    train_model(cfg(tmp_path / "a", 3, resume=True), log=lambda s: None)
+    train_model(cfg(tmp_path / "b", 3), log=lambda s: None)
     ha = json.loads((tmp_path / "a" / "history.json").read_text())
     hb = json.loads((tmp_path / "b" / "history.json").read_text())
     assert [h["epoch"] for h in ha] == [1, 2, 3]
@@ -144,8 +145,9 @@ def _free_port() -> int:
 def test_ddp_gloo_single_process(fixture_data, tmp_path, monkeypatch, model):
     """The torchrun path (RANK/WORLD_SIZE set): gloo process group, DDP-wrapped model, rank 0 writes. The rhythmic
     model leaves every other stage's parameters unused in each epoch."""
+    from robogest.generators.learned import train_model
     from robogest.learn.checkpoint import load_checkpoint
-    from robogest.learn.trainer import TrainConfig, train
+    from robogest.learn.trainer import TrainConfig
 
     for k, v in {"RANK": "0", "WORLD_SIZE": "1", "LOCAL_RANK": "0", "MASTER_ADDR": "127.0.0.1"}.items():
         monkeypatch.setenv(k, v)
@@ -159,7 +161,7 @@ def test_ddp_gloo_single_process(fixture_data, tmp_path, monkeypatch, model):
         val_fraction=0.0, device="cpu", cache_dir=str(tmp_path / "cache"), model_overrides=overrides, **HASH16,
     )  # fmt: skip
     lines: list[str] = []
-    train(cfg, log=lines.append)
+    train_model(cfg, log=lines.append)
     ckpt = load_checkpoint(tmp_path / "ddp" / "last.pt")
     assert not any(k.startswith("module.") for k in ckpt["model_state"])  # the unwrapped model is saved
     assert ckpt["train_state"]["next_epoch"] == epochs

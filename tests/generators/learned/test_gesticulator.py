@@ -11,7 +11,7 @@ from robogest.errors import MissingDependencyError
 
 torch = pytest.importorskip("torch")
 
-from robogest.generators.gesticulator import (  # noqa: E402
+from robogest.generators.learned.gesticulator import (  # noqa: E402
     SPEC,
     GesticulatorConfig,
     GesticulatorNet,
@@ -90,11 +90,34 @@ def test_teacher_forcing_feeds_ground_truth():
     torch.testing.assert_close(net(x, y, 0), net(x, y2, 0))  # only the seed frames 7..9 are read
 
 
+@pytest.mark.parametrize("epoch", [0, 8, 20])
+def test_validation_is_a_free_running_rollout_at_every_epoch(epoch):
+    """best.pt is chosen on the rollout generation does (mean-pose seed, own poses fed back), whatever the epoch's
+    teacher forcing: the teacher-forced loss changes with the ground-truth poses, the validation loss does not."""
+    net = _small().eval()
+    with torch.no_grad():
+        net.film.weight.normal_()
+    cfg = net.config
+    x, y = torch.randn(2, 70, 7), torch.randn(2, 70, 6)
+    y2 = y.clone()
+    y2[:, :10] += 3.0  # seed poses and ground truth outside the 40 scored frames
+    y2[:, 50:] += 3.0
+    with torch.no_grad():
+        val = SPEC.validation_loss(net, x, y, epoch, cfg)
+        torch.testing.assert_close(SPEC.validation_loss(net, x, y2, epoch, cfg), val)
+        free = net(x, None, 1)  # what GesticulatorGenerator.predict runs
+        target = y[:, 10:50]
+        vel = torch.mean(((free[:, 1:] - free[:, :-1]) - (target[:, 1:] - target[:, :-1])) ** 2)
+        torch.testing.assert_close(val, torch.mean((free - target) ** 2) + 0.6 * vel)
+        if epoch >= 11:  # full teacher forcing: the training loss reads the ground truth, the validation does not
+            assert not torch.allclose(SPEC.loss(net, x, y, epoch, cfg), SPEC.loss(net, x, y2, epoch, cfg))
+
+
 def test_stream_equals_batch():
     """infer_stream (frame by frame, 1 s look-ahead) gives the same poses as predict on the whole input."""
     from robogest.data import FeatureConfig
     from robogest.data.prep import Normalization
-    from robogest.generators.gesticulator import GesticulatorGenerator
+    from robogest.generators.learned.gesticulator import GesticulatorGenerator
 
     net = _small()
     with torch.no_grad():
@@ -114,7 +137,7 @@ def test_stream_look_ahead_is_one_second():
     """The pose of frame 0 comes out when frame 19 (the 20th, 1 s at 20 fps) has been read."""
     from robogest.data import FeatureConfig
     from robogest.data.prep import Normalization
-    from robogest.generators.gesticulator import GesticulatorGenerator
+    from robogest.generators.learned.gesticulator import GesticulatorGenerator
 
     norm = Normalization(
         np.zeros(4, np.float32), np.ones(4, np.float32), np.zeros(6, np.float32), np.ones(6, np.float32)
@@ -134,9 +157,10 @@ def test_stream_look_ahead_is_one_second():
 
 def test_missing_torch_raises_install_hint(monkeypatch):
     monkeypatch.setitem(sys.modules, "torch", None)  # makes `import torch` fail
-    monkeypatch.delitem(sys.modules, "robogest.generators.gesticulator", raising=False)
+    for name in [m for m in sys.modules if m.startswith("robogest.generators.learned.gesticulator")]:
+        monkeypatch.delitem(sys.modules, name)
     with pytest.raises(MissingDependencyError, match=r"pip install 'robogest\[learn\]'"):
-        import robogest.generators.gesticulator  # noqa: F401
+        import robogest.generators.learned.gesticulator  # noqa: F401
     from robogest.learn import require_torch
 
     with pytest.raises(MissingDependencyError, match="robogest\\[learn\\]"):
@@ -145,7 +169,7 @@ def test_missing_torch_raises_install_hint(monkeypatch):
 
 def test_generator_without_checkpoint_is_input_error(tmp_path):
     from robogest.errors import InputError
-    from robogest.generators.gesticulator import GesticulatorGenerator
+    from robogest.generators.learned.gesticulator import GesticulatorGenerator
 
     with pytest.raises(InputError, match="--checkpoint"):
         GesticulatorGenerator()

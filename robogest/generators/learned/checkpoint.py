@@ -37,7 +37,9 @@ class CheckpointGenerator(Generator):
     config_cls: ClassVar[Any]
     net_cls: ClassVar[Any]
 
-    def __init__(self, checkpoint: str | os.PathLike | None = None, device: str = "cpu", encoder: Any = None) -> None:
+    def __init__(
+        self, checkpoint: str | os.PathLike | None = None, device: str = "cpu", encoder: Any = None, **options: Any
+    ) -> None:
         require_torch(f"the {self.name!r} generator")
         if checkpoint is None:
             raise InputError(
@@ -50,22 +52,38 @@ class CheckpointGenerator(Generator):
         config = self.config_cls.from_dict(ckpt["model_config"])
         model = build_model(ckpt, lambda: self.net_cls(config), checkpoint, device)
         features = FeatureConfig.from_dict(ckpt["feature_config"])
-        self._adopt(model, features, Normalization.from_dict(normalization_arrays(ckpt)), encoder)
         self.path: Path | None = Path(checkpoint)
+        self._adopt(model, features, Normalization.from_dict(normalization_arrays(ckpt)), encoder, options)
 
     @classmethod
-    def from_model(cls, model: Any, features: FeatureConfig, norm: Normalization, encoder: Any = None):
+    def from_model(
+        cls, model: Any, features: FeatureConfig, norm: Normalization | None = None, encoder: Any = None, **options: Any
+    ):
         """Wrap an in-memory model (tests, notebooks) without a checkpoint file."""
         self = cls.__new__(cls)
-        self._adopt(model, features, norm, encoder)
         self.path = None
+        self._adopt(model, features, norm, encoder, options)
         return self
 
-    def _adopt(self, model: Any, features: FeatureConfig, norm: Normalization, encoder: Any) -> None:
+    def _adopt(
+        self, model: Any, features: FeatureConfig, norm: Normalization | None, encoder: Any, options: dict[str, Any]
+    ) -> None:
         self.config, self.features, self.norm = model.config, features, norm
         self.device = next(model.parameters()).device
         self.model = model.eval()
         self._encoder = encoder
+        self.configure(**options)
+
+    def configure(self, **options: Any) -> None:
+        """Run-time options beyond the checkpoint (e.g. S2AG's speaker); this base generator takes none.
+
+        Raises
+        ------
+        InputError
+            An option the generator does not know.
+        """
+        if options:
+            raise InputError(f"the {self.name} generator has no option(s) {', '.join(sorted(options))}")
 
     @property
     def encoder(self) -> Any:

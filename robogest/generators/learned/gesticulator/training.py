@@ -1,0 +1,51 @@
+"""The trainer's view of Gesticulator (:class:`robogest.learn.trainer.ModelSpec`): config, network, loss."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from robogest.generators.learned.gesticulator.model import (
+    GesticulatorConfig,
+    GesticulatorNet,
+    gesture_loss,
+    teacher_forcing_period,
+)
+from robogest.learn import config_with_overrides
+
+
+class GesticulatorSpec:
+    """The trainer's view of the model (:class:`robogest.learn.trainer.ModelSpec`)."""
+
+    name = "gesticulator"
+
+    def make_config(self, n_acoustic: int, n_text: int, n_pose: int, overrides: dict[str, Any]) -> GesticulatorConfig:
+        return config_with_overrides(
+            GesticulatorConfig, "gesticulator", overrides, n_acoustic=n_acoustic, n_text=n_text, n_pose=n_pose
+        )
+
+    def config_from_dict(self, d: dict[str, Any]) -> GesticulatorConfig:
+        return GesticulatorConfig.from_dict(d)
+
+    def build(self, config: GesticulatorConfig) -> GesticulatorNet:
+        return GesticulatorNet(config)
+
+    def sequence_length(self, config: GesticulatorConfig) -> int:
+        return config.sequence_length
+
+    def loss(self, model, speech, poses, epoch: int, config: GesticulatorConfig):
+        """Loss on the central ``train_frames`` of ``(B, 70, ·)`` sequences at ``epoch``'s teacher forcing."""
+        period = teacher_forcing_period(epoch, config.pretrain_epochs)
+        pred = model(speech, poses, period)  # (B, 40, P)
+        target = poses[:, config.past : config.past + pred.shape[1]]  # (B, 40, P)
+        return gesture_loss(pred, target)
+
+    def validation_loss(self, model, speech, poses, epoch: int, config: GesticulatorConfig):
+        """Loss of a free-running rollout from the mean pose, at every epoch (the authors' validation): the model's
+        own poses feed back as at run time, so ``best.pt`` is chosen on what generation will do, not on a
+        teacher-forced score (which from epoch 11 on sees the ground truth every frame)."""
+        pred = model(speech, None, period=1)  # no ground truth: period 1 feeds back its own poses
+        target = poses[:, config.past : config.past + pred.shape[1]]
+        return gesture_loss(pred, target)
+
+
+SPEC = GesticulatorSpec()
