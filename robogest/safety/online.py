@@ -66,6 +66,7 @@ class MotionState:
 #: Below this (rad, rad/s, rad/s²) a state is taken to have arrived on a still target: float rounding only.
 _ARRIVED_TOL = 1e-9
 
+
 class OnlineLimiter:
     """Per-joint position, velocity, acceleration and jerk limiter for one control loop.
 
