@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from robogest.cli import checks
 from robogest.robot.registry import DEFAULT_ROBOT
 
 SERVE_EPILOG = """protocol (JSON text frames; binary frames are PCM of the open stream):
@@ -34,7 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", default=DEFAULT_ROBOT, help="robot name or YAML path (default: %(default)s)")
     p.add_argument("--backend", default="sim", help="sim (MuJoCo, real time, default), dynamixel or feetech")
     p.add_argument("--port", help="serial port for dynamixel/feetech (default: the robot YAML's bus.port)")
-    p.add_argument("--baud", type=int, help="baud rate (default: the robot YAML's bus.baudrate)")
+    p.add_argument("--baud", type=checks.baud, help="baud rate (default: the robot YAML's bus.baudrate)")
     p.add_argument("--listen", default="127.0.0.1:8765", metavar="HOST:PORT", help="address (default: %(default)s)")
     p.add_argument("--token", help="shared secret clients must send (Authorization: Bearer T, or ?token=T)")
     p.add_argument(

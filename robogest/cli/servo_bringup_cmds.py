@@ -34,9 +34,10 @@ def _joint_index(robot: Any, joint: str) -> int:
 
 # --- jog -----------------------------------------------------------------------------------------
 def jog(args: argparse.Namespace) -> int:
-    from robogest.backends.player import ramp_duration, ramp_sample
+    """One joint to an angle through the one control loop (online limiter + goal guard) at a fraction of the limits."""
+    from robogest.backends.control import ControlLoop, signals_end_at_rest
 
-    robot, backend = _robot_backend(args.robot, args.port)
+    robot, _ = _robot_backend(args.robot, args.port)
     k = _joint_index(robot, args.joint)
     lo, hi = float(robot.q_min_rad[k]), float(robot.q_max_rad[k])
     if not (math.isfinite(args.angle) and lo <= args.angle <= hi):
@@ -46,20 +47,31 @@ def jog(args: argparse.Namespace) -> int:
         )
     if not (0.0 < args.speed <= 1.0 and 0.0 <= args.hold <= 60.0):
         raise InputError("--speed must lie in (0, 1] (fraction of the speed limit) and --hold in [0, 60] s")
-    period = 1.0 / 50.0
-    with backend:  # leaving: back to rest, torque off (also on Ctrl-C or an error)
-        q0 = np.clip(backend.read_positions(), robot.q_min_rad, robot.q_max_rad)
-        backend.write_goal(q0)  # hold where it is, so torque on does not jump
-        backend.set_torque(True)
-        goal = q0.copy()
+    # Gentle: the robot as the loop and the guard see it has its speed, acceleration and jerk limits scaled down.
+    gentle = robot.model_copy(
+        update={
+            "joints": [
+                j.model_copy(
+                    update={
+                        "max_velocity_rad_s": j.max_velocity_rad_s * args.speed,
+                        "max_acceleration_rad_s2": j.max_acceleration_rad_s2 * args.speed,
+                    }
+                )
+                for j in robot.joints
+            ]
+        }
+    )
+    from robogest.backends.base import get_backend_factory
+
+    backend = get_backend_factory(gentle.bus.family)(gentle, port=args.port)
+    with signals_end_at_rest(), ControlLoop(backend, rate_hz=50.0) as loop:  # leaving: rest, torque off
+        goal = loop.goal_rad.copy()
         goal[k] = args.angle
-        dur = ramp_duration(q0, goal, robot.v_max_rad_s * args.speed, robot.a_max_rad_s2 * args.speed)
-        t0 = time.monotonic()
-        while (t := time.monotonic() - t0) < dur + args.hold:  # sampled at the time it is: never bunched
-            backend.write_goal(ramp_sample(q0, goal, t, dur))
-            backend.read_positions()
-            time.sleep(max(0.0, period - (time.monotonic() - t0 - t)))
-        backend.write_goal(goal)
+        loop.set_idle(lambda t: goal)
+        deadline = time.monotonic() + 120.0
+        while np.max(np.abs(loop.goal_rad - goal)) > 1e-4 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        time.sleep(args.hold)
         q = backend.read_positions()
         print(f"{args.joint}: at {q[k]:+.3f} rad (goal {args.angle:+.3f} rad); back to rest, torque off")
     return 0

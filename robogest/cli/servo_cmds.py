@@ -9,6 +9,7 @@ import sys
 import threading
 from typing import Any
 
+from robogest.cli import checks
 from robogest.errors import BackendError, ConfigError, InputError, SafetyError
 
 _PROTOCOLS = ("dxl2", "sts", "scs", "dxl1")
@@ -19,7 +20,9 @@ def add_check_parser(sub: Any) -> None:
     check = sub.add_parser("check", help="check a robot's servos: ids, models, positions in limits, temperatures")
     check.add_argument("robot", help="robot name or YAML path")
     check.add_argument("--port", required=True, help="serial port of the servo bus")
-    check.add_argument("--baud", type=int, default=None, help="baud rate (default: the robot YAML's bus.baudrate)")
+    check.add_argument(
+        "--baud", type=checks.baud, default=None, help="baud rate (default: the robot YAML's bus.baudrate)"
+    )
     check.set_defaults(func=_check)
 
 
@@ -43,8 +46,13 @@ def register(subparsers: Any) -> None:
     )
     scan.add_argument("--port", required=True)
     scan.add_argument("--protocol", choices=_PROTOCOLS, action="append", help="repeatable; default all")
-    scan.add_argument("--baud", type=int, action="append", help="repeatable; default the common ones")
-    scan.add_argument("--max-id", type=int, default=252, help="highest id to wait for (default: %(default)s)")
+    scan.add_argument("--baud", type=checks.baud, action="append", help="repeatable; default the common ones")
+    scan.add_argument(
+        "--max-id",
+        type=checks.number(0, 252, integer=True),
+        default=252,
+        help="highest id to wait for (default: %(default)s)",
+    )
     scan.add_argument("--per-id", action="store_true", help="ask ids one by one (servos that ignore broadcasts)")
     scan.add_argument("--all", action="store_true", help="try every protocol, not only up to the first that answers")
     scan.add_argument("--json", action="store_true", help="print a JSON list instead of one line per servo")
@@ -56,7 +64,7 @@ def register(subparsers: Any) -> None:
     doc.add_argument("--port", required=True)
     doc.add_argument("--robot", help="robot name or YAML: also check ids, baud and position limits against it")
     doc.add_argument("--protocol", choices=_PROTOCOLS, action="append", help="without --robot: repeatable")
-    doc.add_argument("--baud", type=int, action="append", help="without --robot: repeatable")
+    doc.add_argument("--baud", type=checks.baud, action="append", help="without --robot: repeatable")
     doc.add_argument("--fix", action="store_true", help="set what can be set (turns torque off: support the arms)")
     doc.set_defaults(func=_doctor)
     cal = ss.add_parser(
@@ -89,19 +97,19 @@ def register(subparsers: Any) -> None:
             else None,
         )
         p.add_argument("--port", required=True)
-        p.add_argument("--id", type=int, required=True)
+        p.add_argument("--id", type=checks.number(0, 253, integer=True), required=True, help="servo id, 0..253")
         robot_s = "the --robot's, else " if name == "write" else ""
         p.add_argument("--protocol", choices=_PROTOCOLS, default=None, help=f"default: {robot_s}dxl2")
-        p.add_argument("--baud", type=int, default=None, help=f"default: {robot_s}1000000")
+        p.add_argument("--baud", type=checks.baud, default=None, help=f"default: {robot_s}1000000")
         if name == "write":
             p.add_argument("--robot", help="robot name or YAML path: goal positions are checked against its limits")
         if name != "ping":
             g = p.add_mutually_exclusive_group(required=True)
             g.add_argument("--register", help="register name, e.g. PRESENT_POSITION")
-            g.add_argument("--addr", type=int, help="raw address (with --size)")
+            g.add_argument("--addr", type=checks.number(0, 65535, integer=True), help="raw address (with --size)")
             p.add_argument("--size", type=int, choices=(1, 2, 4), default=None)
         if name == "write":
-            p.add_argument("--value", type=int, required=True)
+            p.add_argument("--value", type=checks.number(-(2**31), 2**32 - 1, integer=True), required=True)
         p.set_defaults(func=_one)
     add_check_parser(ss)
     servo.set_defaults(func=lambda a: (servo.print_help(), 2)[1])

@@ -54,7 +54,7 @@ def _add_output_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--video", metavar="FILE.mp4", help="render the simulated robot with the speech audio (sim; three-quarter view)"
     )
-    p.add_argument("--video-size", metavar="WxH", type=_video_size, default=(1280, 720),
+    p.add_argument("--video-size", metavar="WxH", type=checks.frame_size, default=(1280, 720),
                    help="video frame size in pixels, even numbers (default: 1280x720)")  # fmt: skip
     p.add_argument("--plot", metavar="FILE.png", help="plot wrist trajectories, beats, silent spans, joint commands")
     p.add_argument("--realtime", action="store_true", help="run the simulation in real time (sim)")
@@ -105,15 +105,6 @@ def _check_paths(args: argparse.Namespace, inputs: dict[str, str | None]) -> Non
         outputs["--save's audio"] = str(Path(args.save).with_suffix(".wav"))
     robot_file = args.robot if os.path.isfile(args.robot) else None
     checks.check_outputs(outputs, {**inputs, "--robot": robot_file})
-
-
-def _video_size(text: str) -> tuple[int, int]:
-    """``WxH`` -> (width, height); argparse turns the ValueError into a usage error naming the option."""
-    w, sep, h = text.lower().partition("x")
-    ok = sep and w.isdigit() and h.isdigit()
-    if not ok or not (16 <= int(w) <= 4096 and 16 <= int(h) <= 4096) or int(w) % 2 or int(h) % 2:
-        raise argparse.ArgumentTypeError(f"{text!r}: use WIDTHxHEIGHT in even pixels from 16 to 4096, e.g. 1280x720")
-    return int(w), int(h)
 
 
 def _backend_options(args: argparse.Namespace) -> dict:

@@ -207,13 +207,14 @@ def load_robot_config(path: str | Path) -> RobotConfig:
     try:
         cfg = RobotConfig.model_validate({**raw, "path": path})
     except ValidationError as e:
-        lines = [f"{path}: invalid robot definition:"]
+        problems = []
         for err in e.errors():
             msg = err["msg"].removeprefix("Value error, ")
             if err["type"] == "finite_number":
                 msg = f"{err['input']!r} is not a finite number; write a real value (NaN and .inf are not allowed)"
-            lines.append(f"  key {_format_loc(err['loc'])}: {msg}")
-        raise ConfigError("\n".join(lines)) from None
+            problems.append(f"key {_format_loc(err['loc'])}: {msg}")
+        # One line (the CLI prints every error as one line), every problem in it.
+        raise ConfigError(f"{path}: invalid robot definition: " + "; ".join(problems)) from None
     if not cfg.model_path.is_file():
         raise ConfigError(
             f"{path}: key model: MuJoCo file {cfg.model_path} does not exist; fix the path (relative to the YAML)"
