@@ -42,6 +42,9 @@ class TrajectoryFeed:
         self.robot = robot.name
         self.fps = float(fps)
         self._robot = robot
+        # the limits it was made for, as a Trajectory carries them (the control loop checks they are the robot's)
+        self.q_min_rad, self.q_max_rad = robot.q_min_rad, robot.q_max_rad
+        self.v_max_rad_s, self.a_max_rad_s2, self.rest_q_rad = robot.v_max_rad_s, robot.a_max_rad_s2, robot.rest_q_rad
         self._q = np.empty((0, len(self.joint_names)))
         self._lock = threading.Lock()
         self.closed = False
@@ -50,6 +53,11 @@ class TrajectoryFeed:
     @property
     def n_frames(self) -> int:
         return int(self._q.shape[0])
+
+    @property
+    def q_rad(self) -> np.ndarray:
+        """Frames so far ``(K, J)``, radians."""
+        return self._q
 
     @property
     def known_s(self) -> float:

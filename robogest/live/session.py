@@ -59,8 +59,12 @@ class _PacedSim(Backend):
         return bool(getattr(self.inner, "is_connected", False))
 
     @property
-    def last_goal_rad(self) -> np.ndarray | None:
-        return getattr(self.inner, "last_goal_rad", None)
+    def last_goal_rad(self) -> np.ndarray | None:  # type: ignore[override]
+        return getattr(getattr(self, "inner", None), "last_goal_rad", None)
+
+    @last_goal_rad.setter
+    def last_goal_rad(self, value: np.ndarray | None) -> None:  # the inner backend keeps the real one
+        pass
 
     def set_control_rate(self, rate_hz: float) -> None:
         super().set_control_rate(rate_hz)
@@ -75,9 +79,12 @@ class _PacedSim(Backend):
     def set_torque(self, on: bool) -> None:
         self.inner.set_torque(on)
 
-    def write_goal(self, q_rad: np.ndarray) -> None:
-        self.inner.write_goal(q_rad)
+    def write_goal(self, q_rad: np.ndarray, *, source: str = "") -> None:
+        self.inner.write_goal(q_rad, source=source)  # the inner backend's goal guard checks it
         self.inner.advance(1.0 / self.control_rate_hz)
+
+    def _send_goal(self, q_rad: np.ndarray) -> None:  # write_goal delegates whole; never called
+        self.inner.write_goal(q_rad)
 
     def disconnect(self) -> None:
         self.inner.disconnect()
