@@ -10,14 +10,15 @@ The names a user needs load on first use (module ``__getattr__``), so ``import r
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from robogest.errors import RobogestError
     from robogest.live import Robot, UtteranceHandle
     from robogest.robot.registry import find_robot, list_robots
     from robogest.speech import load_speech, synthesize
+
+from robogest._lazy import lazy_getattr
 
 _LAZY = {
     "Robot": "robogest.live",
@@ -29,11 +30,7 @@ _LAZY = {
     "synthesize": "robogest.speech",
 }
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _LAZY)
 
 
 __all__ = ["RobogestError", "Robot", "UtteranceHandle", "find_robot", "list_robots", "load_speech", "synthesize"]

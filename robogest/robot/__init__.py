@@ -5,12 +5,13 @@ Names load on first use (module ``__getattr__``) so that finding a robot's name 
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from robogest.robot.config import RobotConfig, load_robot_config
     from robogest.robot.registry import find_robot, list_robots, robots_dir
+
+from robogest._lazy import lazy_getattr
 
 _LAZY = {
     "RobotConfig": "robogest.robot.config",
@@ -20,11 +21,7 @@ _LAZY = {
     "robots_dir": "robogest.robot.registry",
 }
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _LAZY)
 
 
 __all__ = ["RobotConfig", "find_robot", "list_robots", "load_robot_config", "robots_dir"]
