@@ -35,9 +35,13 @@ def _joint_index(robot: Any, joint: str) -> int:
 # --- jog -----------------------------------------------------------------------------------------
 def jog(args: argparse.Namespace) -> int:
     """One joint to an angle through the one control loop (online limiter + goal guard) at a fraction of the limits."""
+    from robogest.backends.base import get_backend_factory
     from robogest.backends.control import ControlLoop, signals_end_at_rest
+    from robogest.robot.registry import find_robot
 
-    robot, _ = _robot_backend(args.robot, args.port)
+    robot = find_robot(args.robot)
+    if robot.bus is None:
+        raise ConfigError(f"robot {robot.name!r} has no bus section; add bus: family, protocol, baudrate, servos")
     k = _joint_index(robot, args.joint)
     lo, hi = float(robot.q_min_rad[k]), float(robot.q_max_rad[k])
     if not (math.isfinite(args.angle) and lo <= args.angle <= hi):
@@ -61,7 +65,8 @@ def jog(args: argparse.Namespace) -> int:
             ]
         }
     )
-    from robogest.backends.base import get_backend_factory
+    import robogest.backends.dynamixel
+    import robogest.backends.feetech  # noqa: F401 - register the servo backends
 
     backend = get_backend_factory(gentle.bus.family)(gentle, port=args.port)
     with signals_end_at_rest(), ControlLoop(backend, rate_hz=50.0) as loop:  # leaving: rest, torque off
@@ -72,8 +77,8 @@ def jog(args: argparse.Namespace) -> int:
         while np.max(np.abs(loop.goal_rad - goal)) > 1e-4 and time.monotonic() < deadline:
             time.sleep(0.02)
         time.sleep(args.hold)
-        q = backend.read_positions()
-        print(f"{args.joint}: at {q[k]:+.3f} rad (goal {args.angle:+.3f} rad); back to rest, torque off")
+        reached = loop.goal_rad[k]  # the loop thread owns the port: no read from here
+        print(f"{args.joint}: at {reached:+.3f} rad (goal {args.angle:+.3f} rad); back to rest, torque off")
     return 0
 
 

@@ -42,8 +42,9 @@ def test_five_percent_reply_faults_on_eleven_servos_complete(tmp_path, family, p
     assert rec["torque_on"].any() and not rec["torque_on"][-1].any()
     rest = backend.rad_to_ticks(robot.rest_q_rad)[np.argsort(backend.ids)]
     np.testing.assert_allclose(rec["present_ticks"][-1], rest, atol=0.03 * backend._tpr[0])
-    # Faults happened and were retried, one re-read per lost reply (not the whole group of 11 again).
-    assert faults > 0 and 0 < report.retries <= faults
+    # Faults happened and were retried, one re-read per lost reply (not the whole group of 11 again). A reply the
+    # starved test machine delivered after its deadline is lost too: it is retried and later dropped as stale.
+    assert faults > 0 and 0 < report.retries <= faults + backend.stale_replies
     assert report.missed_reads <= faults
     assert any("re-reading" in e for e in report.errors)
 
