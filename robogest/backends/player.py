@@ -16,14 +16,13 @@ the file), and the backend's own guard refuses any goal that still breaks a limi
 
 from __future__ import annotations
 
-import contextlib
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
+from robogest.backends.audio import AudioOut, open_output
 from robogest.backends.base import Backend
 from robogest.backends.control import ControlLoop, Interrupted, signals_end_at_rest
 from robogest.errors import BackendError, RobogestError
@@ -54,39 +53,6 @@ class PlaybackReport:
     missed_reads: int = 0
     completed: bool = False
     audio: bool = False
-
-
-class _Audio:
-    """Speech playback through ``sounddevice`` when it and an output device exist; otherwise nothing."""
-
-    def __init__(self, audio: np.ndarray | None, sr: int) -> None:
-        self.sd: Any = None
-        self.audio = audio
-        self.sr = sr
-        if audio is None or len(audio) == 0:
-            return
-        try:
-            import sounddevice as sd
-
-            sd.query_devices(kind="output")
-            self.sd = sd
-        except Exception:  # not installed, no PortAudio, or no output device: play silently
-            self.sd = None
-
-    def start(self) -> bool:
-        if self.sd is None:
-            return False
-        try:
-            self.sd.play(np.asarray(self.audio, dtype=np.float32), self.sr, blocking=False)
-            return True
-        except Exception:
-            self.sd = None
-            return False
-
-    def stop(self) -> None:
-        if self.sd is not None:
-            with contextlib.suppress(Exception):
-                self.sd.stop()
 
 
 def play(
@@ -145,7 +111,10 @@ def play(
     """
     check_matches(trajectory, backend.robot)  # before anything moves
     report = PlaybackReport()
-    sound = _Audio(audio if time_scale == 1.0 else None, audio_sr)
+    sd = open_output()[0] if audio is not None and len(audio) and time_scale == 1.0 else None
+    sound = AudioOut(sd, audio_sr) if sd is not None else None
+    if sound is not None:
+        sound.write(audio)
     wall0 = time.monotonic()
     loop = ControlLoop(backend, rate_hz, threaded=False, read_back=read_back, time_scale=time_scale)
     with signals_end_at_rest():
@@ -157,7 +126,7 @@ def play(
 
             def started() -> None:
                 report.ramp_in_s = handle.events["started"].loop_s
-                report.audio = sound.start()
+                report.audio = sound is not None and sound.start()
                 if on_start is not None:
                     on_start(report.ramp_in_s)
 
@@ -172,7 +141,8 @@ def play(
             interrupted = e
             raise
         finally:
-            sound.stop()
+            if sound is not None:
+                sound.stop()
             try:
                 problem = loop.close()
             finally:

@@ -30,9 +30,9 @@ from typing import Any
 
 import numpy as np
 
+from robogest.backends.audio import AudioOut, open_output
 from robogest.backends.base import Backend
 from robogest.errors import InputError
-from robogest.live.audio import AudioOut, open_output
 from robogest.live.idle import IdleConfig, IdleMotion
 from robogest.robot.registry import DEFAULT_ROBOT
 

@@ -1,6 +1,7 @@
-"""Speech output of a live session: ``sounddevice`` when installed and an output device exists, else nothing.
+"""Speech output (the player and a live session): ``sounddevice`` when installed and an output device exists, else
+nothing.
 
-Without it, the session still schedules the audio: every utterance's events carry the ``time.monotonic()``
+Without it, a live session still schedules the audio: every utterance's events carry the ``time.monotonic()``
 at which each stretch of its audio should start playing, so the caller can play it in sync.
 """
 

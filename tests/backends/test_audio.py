@@ -1,0 +1,54 @@
+"""The player's speech output goes through the same ``AudioOut`` as a live session (a stand-in sounddevice)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import robogest.backends.player as player
+from robogest.backends.mujoco_sim import MujocoBackend, sine_test_trajectory
+from robogest.robot import find_robot
+
+
+class FakeStream:
+    def __init__(self, callback, **kw):
+        self.callback, self.kw, self.started, self.closed = callback, kw, False, False
+
+    def start(self):
+        self.started = True
+
+    def stop(self):
+        pass
+
+    def close(self):
+        self.closed = True
+
+
+class FakeSD:
+    def __init__(self):
+        self.streams: list[FakeStream] = []
+
+    def OutputStream(self, callback, **kw):
+        self.streams.append(FakeStream(callback, **kw))
+        return self.streams[-1]
+
+
+def test_play_streams_the_speech_samples_and_closes_the_stream(monkeypatch):
+    sd = FakeSD()
+    monkeypatch.setattr(player, "open_output", lambda: (sd, ""))
+    robot = find_robot("humanoid_xl430")
+    audio = np.linspace(-0.5, 0.5, 800, dtype=np.float32)
+    report = player.play(sine_test_trajectory(robot, duration_s=0.3), MujocoBackend(robot), audio=audio, audio_sr=8000)
+    assert report.audio and len(sd.streams) == 1
+    stream = sd.streams[0]
+    assert stream.started and stream.closed and stream.kw["samplerate"] == 8000
+    out = np.ones((1000, 1), np.float32)
+    stream.callback(out, 1000, None, None)
+    np.testing.assert_array_equal(out[:800, 0], audio)  # every sample, in order
+    assert not out[800:].any()  # then silence
+
+
+def test_no_output_device_plays_silently(monkeypatch):
+    monkeypatch.setattr(player, "open_output", lambda: (None, "no audio output device"))
+    robot = find_robot("humanoid_xl430")
+    report = player.play(sine_test_trajectory(robot, duration_s=0.2), MujocoBackend(robot), audio=np.zeros(100))
+    assert report.completed and not report.audio
