@@ -13,7 +13,7 @@ from robogest.errors import InputError
 from robogest.speech.audio import read_audio, resample
 from robogest.speech.beats import detect_onsets, gate_onsets, identify_beats
 from robogest.speech.config import SpeechConfig
-from robogest.speech.features import acoustic_features, span_mask, word_features
+from robogest.speech.features import acoustic_features, speech_features
 from robogest.speech.silence import (
     active_regions,
     activity_threshold,
@@ -24,7 +24,7 @@ from robogest.speech.silence import (
 )
 from robogest.speech.transcript import count_syllables, normalize_word, read_transcript, spread_words, validate_words
 from robogest.speech.tts import espeak_synthesize
-from robogest.speech.types import Speech, SpeechFeatures, Word
+from robogest.speech.types import Speech, Word
 
 _DEFAULT = SpeechConfig()
 
@@ -93,17 +93,7 @@ def analyze(
 
     acoustic = acoustic_features(a, sr, config, thresh)
     n_frames = config.n_frames(a.shape[0], sr)
-    wf, filler = word_features(ws, n_frames, config.fps)
-    feats = SpeechFeatures(
-        fps=float(config.fps),
-        mel_db=acoustic["mel_db"],
-        mfcc=acoustic["mfcc"],
-        rms=acoustic["rms"],
-        pitch_hz=acoustic["pitch_hz"],
-        word_features=wf,
-        filler=filler,
-        silence=span_mask(spans, n_frames, config.fps),
-    )
+    feats = speech_features(acoustic, ws, spans, n_frames, config.fps)
     return Speech(
         audio=a,
         sr=sr,

@@ -17,7 +17,7 @@ import numpy as np
 
 from robogest.speech.config import SpeechConfig
 from robogest.speech.silence import frame_rms
-from robogest.speech.types import Word
+from robogest.speech.types import SpeechFeatures, Word
 
 #: Columns of :attr:`SpeechFeatures.word_features` (Gesticulator Table 1, without the BERT vector).
 WORD_FEATURE_NAMES = ("time_since_start_s", "time_to_end_s", "duration_s", "progress", "rate_syll_s")
@@ -244,3 +244,34 @@ def span_mask(spans: Sequence[tuple[float, float]], n_frames: int, fps: float) -
     for a, b in spans:
         mask |= (times >= a) & (times < b)
     return mask
+
+
+def speech_features(
+    acoustic: dict[str, np.ndarray],
+    words: Sequence[Word],
+    spans: Sequence[tuple[float, float]],
+    n_frames: int,
+    fps: float,
+) -> SpeechFeatures:
+    """The frame features of an utterance (batch or streamed) from its acoustic arrays, words and silent spans.
+
+    Parameters
+    ----------
+    acoustic : dict of str to ndarray
+        ``mel_db`` [shape=(T, n_mels)], ``mfcc`` [shape=(T, 37)], ``rms`` [shape=(T,)], ``pitch_hz`` [shape=(T,)].
+    words : sequence of Word
+    spans : sequence of (start_s, end_s), seconds
+    n_frames : int
+    fps : float, frames/s
+    """
+    wf, filler = word_features(words, n_frames, fps)
+    return SpeechFeatures(
+        fps=float(fps),
+        mel_db=acoustic["mel_db"],
+        mfcc=acoustic["mfcc"],
+        rms=acoustic["rms"],
+        pitch_hz=acoustic["pitch_hz"],
+        word_features=wf,
+        filler=filler,
+        silence=span_mask(spans, n_frames, fps),
+    )

@@ -35,10 +35,10 @@ import numpy as np
 from robogest.errors import InputError
 from robogest.speech.beats import gate_onsets, identify_beats, onset_envelope_peaks
 from robogest.speech.config import SpeechConfig
-from robogest.speech.features import acoustic_features, mel_hop_win, span_mask, word_features
+from robogest.speech.features import acoustic_features, mel_hop_win, speech_features
 from robogest.speech.silence import activity_threshold, estimate_noise_level, fine_volume, silent_spans
 from robogest.speech.transcript import count_syllables, normalize_word
-from robogest.speech.types import Speech, SpeechFeatures, Word
+from robogest.speech.types import Speech, Word
 
 #: Look-ahead L, seconds: how far the front-end's committed results trail the newest audio.
 DEFAULT_LOOKAHEAD_S = 0.15
@@ -335,17 +335,7 @@ class SpeechStream:
             n_real = self.config.n_frames(a.shape[0], self.sr)
             feats["pitch_hz"][n_real:] = 0.0
         words = tuple(w for w in self.words if w.end_s <= total)
-        wf, filler = word_features(words, n_frames, self.config.fps)
-        sf = SpeechFeatures(
-            fps=float(self.config.fps),
-            mel_db=feats["mel_db"],
-            mfcc=feats["mfcc"],
-            rms=feats["rms"],
-            pitch_hz=feats["pitch_hz"],
-            word_features=wf,
-            filler=filler,
-            silence=span_mask(spans, n_frames, self.config.fps),
-        )
+        sf = speech_features(feats, words, spans, n_frames, self.config.fps)
         audio = np.concatenate([a, np.zeros(pad_n, np.float32)]) if pad_n else a
         return Speech(
             audio=audio,
