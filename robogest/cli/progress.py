@@ -39,7 +39,7 @@ def progress_lines(label: str, stream=None, clock: Callable[[], float] = time.mo
         nonlocal last_step
         if not total or last_step > 10 or clock() - start < QUIET_FIRST_S:
             return
-        step = min(10, 10 * done // total)
+        step = min(10, int(10 * done // total))  # done/total may be seconds (floats): print whole percents
         if step > last_step:
             last_step = step
             try:

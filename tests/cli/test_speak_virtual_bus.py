@@ -48,7 +48,7 @@ def test_speak_on_virtual_bus_ends_at_rest_with_torque_off(robot_name, family, c
 
 
 #: Plain progress lines (`robogest.cli.progress`) a piped stderr gets during a long command; not error lines.
-PROGRESS_LINE = re.compile(r"^robogest: [\w +]+: \d+(\.\d+)?% \(")
+PROGRESS_LINE = re.compile(r"^robogest: [\w +]+: \d+% \(")
 
 
 def _signal_at(monkeypatch, signum, t_s: float = 0.5):
