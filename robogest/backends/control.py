@@ -166,10 +166,13 @@ class PlayHandle:
     the goal settled on its last pose; for a rest handle: at rest), ``interrupted`` (replaced or interrupted).
     """
 
-    def __init__(self, loop: ControlLoop, trajectory: Trajectory | None, start_at: float | None) -> None:
+    def __init__(
+        self, loop: ControlLoop, trajectory: Trajectory | None, start_at: float | None, approach_within_rad: float = 0.0
+    ) -> None:
         self._loop = loop
         self.trajectory = trajectory
         self.start_at = start_at
+        self.approach_within_rad = approach_within_rad
         self.events: dict[str, Event] = {}
         self._finished = threading.Event()
         self.error: BaseException | None = None
@@ -331,9 +334,16 @@ class ControlLoop:
         self._wall0 = time.monotonic()
         self._k = 0
 
-    def play(self, trajectory: Trajectory, start_at: float | None = None) -> PlayHandle:
+    def play(
+        self, trajectory: Trajectory, start_at: float | None = None, approach_within_rad: float = 0.0
+    ) -> PlayHandle:
         """Play ``trajectory`` from loop time ``start_at`` (default: now; from a monotonic time: :meth:`loop_s_at`);
         returns at once.
+
+        The robot first glides to the trajectory's first pose and comes to a stop there, unless the goal is already
+        within ``approach_within_rad`` of it on every joint: then the trajectory starts at once and the limiter
+        takes up the difference (a live utterance starting from rest or idle motion keeps its time with the
+        speech).
 
         It must match the robot definition (:func:`~robogest.trajectory.types.check_matches`: joints in the robot's
         order, its limits and rest). A trajectory already playing is replaced (its handle gets ``interrupted``); the
@@ -341,7 +351,7 @@ class ControlLoop:
         """
         check_matches(trajectory, self.robot)
         self._check_alive()
-        h = PlayHandle(self, trajectory, start_at)
+        h = PlayHandle(self, trajectory, start_at, approach_within_rad)
         with self._lock:
             self._cancel(self._play)
             self._cancel(self._rest)
@@ -485,7 +495,8 @@ class ControlLoop:
                 h.held = self.limiter.q_rad.copy()
             if h.phase == "approach":
                 first = self.limiter.clamp_target(tr.sample(0.0))
-                if np.max(np.abs(self.limiter.q_rad - first)) <= _DONE_TOL_RAD and self.limiter.still:
+                gap = np.max(np.abs(self.limiter.q_rad - first))
+                if (gap <= _DONE_TOL_RAD and self.limiter.still) or gap <= h.approach_within_rad:
                     h.phase = "run"
                     h.t_run0 = t
                     h._mark("started", t)

@@ -1,13 +1,20 @@
 """Streaming generation: speech that is still arriving -> joint targets for the control loop.
 
 :class:`StreamingPlanner` is a thin incremental wrapper around a batch :class:`~robogest.generators.Generator`
-(the default ``rhythm``): after every front-end update it calls ``generate`` on the speech received so far
-(:meth:`SpeechStream.speech`, padded so the generator does not retract to rest at the provisional end), keeps
-the frames up to ``received - L`` that it has not sent yet, retargets just those (IK warm-started from the last
-frame sent) and appends them to a :class:`TrajectoryFeed`, which the control loop plays like a trajectory.
-Frames already sent are never changed: when a newly found beat changes the plan, the new frames are blended
-from the old ones over ``blend_s``. Strokes still land on beats because the motion is played L behind the
-newest audio, and the speech audio is delayed by the same L.
+(the default ``rhythm``). After every front-end update it calls ``generate`` on the speech received so far
+(:meth:`SpeechStream.speech`, padded so the generator does not retract to rest at the provisional end) and
+writes the frames up to ``received + ahead_s`` into a :class:`TrajectoryFeed`, which the control loop plays like
+a trajectory, L behind the newest audio (the speech audio is delayed by the same L).
+
+Frames are *provisional* until the control loop samples them: a later plan that sees a new beat rewrites the
+frames not yet played (blended from the last frame kept, so the target never jumps), and frames already played
+are never changed. So a stroke planned on a guessed beat moves to the heard beat as long as it has not been
+played, and the feed always holds a few hundred milliseconds of motion beyond what is playing, so a plan that
+comes late does not stall the robot.
+
+The work per plan is bounded, whatever the utterance's length: generation starts at the latest pause in which
+the generator held rest (or, in speech without such a pause, a few seconds before the frames being played;
+:attr:`StreamingPlanner.window_s`), and only frames whose human pose changed are retargeted.
 
 Learned generators stay batch-only (they need the whole utterance's features); the streaming path uses
 ``rhythm``.
@@ -17,6 +24,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 
 import numpy as np
 
@@ -31,10 +39,11 @@ PAD_S = 1.5
 
 
 class TrajectoryFeed:
-    """A trajectory that grows while it plays: what :meth:`ControlLoop.play` needs of a :class:`Trajectory`.
+    """A trajectory that grows, and is revised ahead of playback, while it plays.
 
-    Until :meth:`close`, :attr:`duration_s` is infinite and sampling past the last frame holds it (an
-    *underrun*, counted). Frames are ``(J,)`` radians at ``fps``.
+    What :meth:`ControlLoop.play` needs of a :class:`Trajectory`. Until :meth:`close`, :attr:`duration_s` is
+    infinite and sampling past the last frame holds it (an *underrun*, counted). Frames are ``(J,)`` radians at
+    ``fps``. :meth:`splice` replaces the frames the player has not sampled yet; the ones it has are final.
     """
 
     def __init__(self, robot: RobotConfig, fps: float) -> None:
@@ -47,8 +56,10 @@ class TrajectoryFeed:
         self.v_max_rad_s, self.a_max_rad_s2, self.rest_q_rad = robot.v_max_rad_s, robot.a_max_rad_s2, robot.rest_q_rad
         self._q = np.empty((0, len(self.joint_names)))
         self._lock = threading.Lock()
+        self._sampled_s = -math.inf  # latest time the player sampled
         self.closed = False
         self.underruns = 0
+        self.revised = 0  #: frames rewritten by later plans before they were played
 
     @property
     def n_frames(self) -> int:
@@ -68,20 +79,62 @@ class TrajectoryFeed:
     def duration_s(self) -> float:
         return self.known_s if self.closed else math.inf
 
+    @property
+    def first_open(self) -> int:
+        """Index of the first frame the player has not used yet: it and the later ones may still change."""
+        if self._sampled_s == -math.inf:
+            return 0
+        return int(max(0.0, self._sampled_s) * self.fps) + 1
+
     def append(self, q_rad: np.ndarray) -> None:
         """Frames ``(K, J)`` radians, continuing the feed."""
         q_rad = np.asarray(q_rad, float).reshape(-1, len(self.joint_names))
         with self._lock:
             self._q = np.concatenate([self._q, q_rad])
 
+    def splice(self, start: int, q_rad: np.ndarray, blend_s: float = 0.25, pinned: np.ndarray | None = None) -> int:
+        """Frames ``q_rad (K, J)`` radians for indices ``start..start+K-1``, replacing what is there.
+
+        Frames the player has sampled are kept; the new ones take over from the first open frame (or the end of
+        the feed, if it is shorter), offset to continue from the frame before it, the offset decaying over
+        ``blend_s`` (memoryless: a minimum of motion added); ``pinned (K,)`` frames (rest) are taken as they are.
+        Returns how many frames of ``q_rad`` went in.
+        """
+        q_rad = np.asarray(q_rad, float).reshape(-1, len(self.joint_names))
+        with self._lock:
+            old = self._q
+            if start > old.shape[0]:  # the player ran past the last plan: the missing frames held its last pose
+                fill = old[-1] if old.shape[0] else q_rad[0]
+                old = np.concatenate([old, np.repeat(fill[None], start - old.shape[0], axis=0)])
+            ks = min(max(start, self.first_open), old.shape[0])
+            if ks - start >= q_rad.shape[0]:
+                return 0
+            new = q_rad[ks - start :].copy()
+            if ks > 0:  # continue from the last frame kept: the new plan's offset from it decays
+                ref = q_rad[ks - start - 1] if ks > start else new[0]
+                k = np.arange(1, new.shape[0] + 1)[:, None]
+                blend = (old[ks - 1] - ref) * np.exp(-k / max(1e-9, blend_s / 3 * self.fps))
+                if pinned is not None:
+                    blend[np.asarray(pinned, bool)[ks - start :]] = 0.0
+                new += blend
+            self.revised += max(0, old.shape[0] - ks)
+            self._q = np.concatenate([old[:ks], new])
+            return int(new.shape[0])
+
     def close(self) -> None:
         self.closed = True
 
+    def _index(self, t_s: float) -> tuple[np.ndarray, float, int]:
+        with self._lock:
+            q = self._q
+            if t_s > self._sampled_s:
+                self._sampled_s = t_s
+        x = max(0.0, t_s) * self.fps
+        return q, x, int(x)
+
     def sample(self, t_s: float) -> np.ndarray:
         """Pose ``(J,)`` radians at ``t_s`` (linear between frames; the last frame once past it)."""
-        q = self._q
-        x = max(0.0, t_s) * self.fps
-        i = int(x)
+        q, x, i = self._index(t_s)
         if i >= q.shape[0] - 1:
             if not self.closed and t_s > self.known_s + 0.5 / self.fps:
                 self.underruns += 1
@@ -91,8 +144,7 @@ class TrajectoryFeed:
 
     def sample_velocity(self, t_s: float) -> np.ndarray:
         """Slope ``(J,)`` rad/s of :meth:`sample` at ``t_s`` (0 outside the frames)."""
-        q = self._q
-        i = int(max(0.0, t_s) * self.fps)
+        q, _, i = self._index(t_s)
         if t_s < 0 or i >= q.shape[0] - 1:
             return np.zeros(q.shape[1])
         return (q[i + 1] - q[i]) * self.fps
@@ -128,7 +180,13 @@ class StreamingPlanner:
         Frame rate of the feed, frames/s.
     seed : int
     blend_s : float
-        Replanned frames blend from the previous plan over this long, seconds.
+        Revised frames blend from the last frame kept over this long, seconds.
+    ahead_s : float
+        Frames are planned this far beyond the newest audio received, seconds (provisional: revised by later
+        plans until played), so the player never waits for a plan.
+    window_s : float
+        Longest stretch of speech one plan generates over, seconds, when the speech has no pause in which the
+        generator rests (then it starts ``window_s / 2`` before the frames being played).
     """
 
     def __init__(
@@ -140,6 +198,8 @@ class StreamingPlanner:
         fps: float = 50.0,
         seed: int = 0,
         blend_s: float = 0.25,
+        ahead_s: float = 0.6,
+        window_s: float = 8.0,
     ) -> None:
         self.robot = robot
         self.generator = generator
@@ -147,68 +207,97 @@ class StreamingPlanner:
         self.stream = stream
         self.seed = seed
         self.blend_s = blend_s
+        self.ahead_s = ahead_s
+        self.window_s = window_s
         self.feed = TrajectoryFeed(robot, fps)
         self.rest = np.asarray(robot.rest_q_rad, float)
         self.lo = robot.q_min_rad + 0.02
         self.hi = robot.q_max_rad - 0.02
-        self._q_last = self.rest.copy()
+        self._human = np.empty((0, 0, 4))  # (K, B, 4) human rotations behind the feed's frames: retarget changes only
+        self.start_s = 0.0  #: where the current generation window starts, seconds
         self.n_plans = 0
-        #: Human-motion frames sent, one segment per plan (the canonical-skeleton side, for evaluation).
-        self.human_segments: list[HumanMotion] = []
+        self.plan_s: list[float] = []  #: wall time each plan took, seconds
+
+    def _window_start(self, speech_rests: list[tuple[float, float]], received_s: float) -> float:
+        """Start of the generation window: a rest window already heard, or a bounded stretch back."""
+        feed = self.feed
+        played_s = feed.first_open / feed.fps
+        start = self.start_s
+        for a, b in speech_rests:  # rest windows, absolute times; the robot is exactly at rest from a to b
+            if a > start and b <= received_s - self.stream.lookahead_s and a <= played_s:
+                start = a
+        if received_s - start > self.window_s:
+            start = max(start, played_s - self.window_s / 2)
+        return math.floor(start * 10 + 1e-9) / 10  # on a 0.1 s grid: whole frames of features and of the feed
 
     def plan(self) -> int:
-        """Extend the feed with every frame the stream now allows; returns how many were added."""
+        """Extend and revise the feed with every frame the stream now allows; returns how many were written."""
+        t_start = time.perf_counter()
+        try:
+            return self._plan()
+        finally:
+            self.plan_s.append(time.perf_counter() - t_start)
+
+    def _plan(self) -> int:
         st, feed = self.stream, self.feed
         final = st.closed
-        speech = st.speech(pad_s=PAD_S)
-        if speech.n_frames < 2:
+        full = st.speech(pad_s=PAD_S)
+        if full.n_frames < 2:
             return 0
-        motion = self.generator.generate(speech, seed=self.seed).resample(feed.fps)
-        upto_s = speech.duration_s if final else st.received_s - st.lookahead_s
-        n_end = motion.n_frames if final else min(motion.n_frames, math.floor(upto_s * feed.fps) + 1)
-        n0 = feed.n_frames
-        if n_end <= n0:
-            if final:
-                self._finish()
-            return 0
-        i0 = max(0, n0 - 1)  # re-plan the last frame sent too, to see how far the new plan moved from it
-        seg = HumanMotion(motion.fps, motion.rotations[i0:n_end], motion.root_pos_m[i0:n_end], motion.skeleton)
-        self.human_segments.append(
-            HumanMotion(motion.fps, motion.rotations[n0:n_end], motion.root_pos_m[n0:n_end], motion.skeleton)
-        )
-        q = self.ik.retarget(seg, q0=self._q_last).q_rad  # (K, J)
-        if n0 > 0:  # frames sent are kept: the new plan starts from them and its offset decays (memoryless)
-            k = np.arange(len(q))[:, None]
-            q = (q + (self._q_last - q[0]) * np.exp(-k / (self.blend_s / 3 * feed.fps)))[1:]
-        t = (n0 + np.arange(len(q))) / feed.fps
         rest_windows = getattr(self.generator, "rest_windows", None)
-        if rest_windows is not None:  # exactly at rest where the generator rests (the silent-period hint)
-            for a, b in rest_windows(speech):
-                q[(t >= a) & (t <= b)] = self.rest
-        q = np.clip(q, np.minimum(self.lo, self.rest), np.maximum(self.hi, self.rest))
-        self._q_last = q[-1].copy()
-        feed.append(q)
-        self.n_plans += 1
+        rests = rest_windows(full) if rest_windows is not None else []
+        self.start_s = self._window_start(rests, st.received_s)
+        off = round(self.start_s * feed.fps)
+        motion = self.generator.generate(full.crop(self.start_s), seed=self.seed).resample(feed.fps)
+        upto_s = full.duration_s if final else st.received_s + self.ahead_s
+        n_end = off + motion.n_frames if final else min(off + motion.n_frames, math.floor(upto_s * feed.fps) + 1)
+        d = self._first_changed(motion.rotations, off, max(off, feed.first_open), n_end)
+        n = 0
+        if d < n_end:
+            first = max(off, d - 1)  # one frame before the change, when the window has it: the splice's reference
+            seg = HumanMotion(feed.fps, motion.rotations[first - off : n_end - off],
+                              motion.root_pos_m[first - off : n_end - off], motion.skeleton)  # fmt: skip
+            q0 = feed.q_rad[min(first, feed.n_frames) - 1] if first > 0 and feed.n_frames else self.rest
+            q = self.ik.retarget(seg, q0=q0).q_rad  # (K, J) radians, frames first..n_end-1
+            t = (first + np.arange(len(q))) / feed.fps
+            pinned = np.zeros(len(q), bool)
+            for a, b in rests:  # exactly at rest where the generator rests (the silent-period hint)
+                pinned |= (t >= a) & (t <= b)
+            q[pinned] = self.rest
+            q = np.clip(q, np.minimum(self.lo, self.rest), np.maximum(self.hi, self.rest))
+            n = feed.splice(first, q, self.blend_s, pinned=pinned)
+            self._remember(motion.rotations, off, first, n_end)
+            self.n_plans += 1
         if final:
-            self._finish()
-        return len(q)
+            self._finish(n_end)
+        return n
 
-    def human_motion(self) -> HumanMotion:
-        """The human motion whose frames were sent, concatenated (before IK and the joint-space blend)."""
-        segs = self.human_segments
-        return HumanMotion(
-            self.feed.fps, np.concatenate([m.rotations for m in segs]), np.concatenate([m.root_pos_m for m in segs]),
-            segs[0].skeleton,
-        )  # fmt: skip
+    def _remember(self, rot: np.ndarray, off: int, first: int, n_end: int) -> None:
+        """Keep the human poses behind frames ``first..n_end-1`` (``rot`` starts at frame ``off``)."""
+        h = self._human if self._human.shape[0] else rot[:0]
+        if h.shape[0] < first:  # the player ran past the plan (an underrun): those frames are final anyway
+            h = np.concatenate([h, np.repeat(rot[first - off][None], first - h.shape[0], axis=0)])
+        self._human = np.concatenate([h[:first], rot[first - off : n_end - off]])
 
-    def _finish(self) -> None:
+    def _first_changed(self, rot: np.ndarray, off: int, k0: int, n_end: int) -> int:
+        """First frame index in ``k0..n_end-1`` whose human pose differs from the last plan's (n_end: none)."""
+        n_old = min(n_end, self._human.shape[0]) - k0
+        if n_old <= 0:
+            return k0
+        diff = np.abs(self._human[k0 : k0 + n_old] - rot[k0 - off : k0 - off + n_old]) > 1e-12
+        changed = diff.reshape(n_old, -1).any(axis=1)
+        return k0 + int(np.argmax(changed)) if changed.any() else k0 + n_old
+
+    def _finish(self, n_end: int) -> None:
         """End exactly at rest (a minimum-jerk glide if the generator's last frame is not), then close."""
-        if self.feed.closed:
+        feed = self.feed
+        if feed.closed:
             return
-        d = np.abs(self._q_last - self.rest).max()
-        if d > 1e-9:
-            n = max(2, math.ceil(0.6 * self.feed.fps))
+        with feed._lock:  # drop provisional frames planned past the end of the speech
+            feed._q = feed._q[: max(n_end, feed.first_open, 1)]
+        last = feed.q_rad[-1]
+        if np.abs(last - self.rest).max() > 1e-9:
+            n = max(2, math.ceil(0.6 * feed.fps))
             s = _min_jerk(np.arange(1, n + 1) / n)[:, None]
-            self.feed.append(self._q_last + (self.rest - self._q_last) * s)
-            self._q_last = self.rest.copy()
-        self.feed.close()
+            feed.append(last + (self.rest - last) * s)
+        feed.close()

@@ -71,6 +71,24 @@ def pcm_to_float(chunk: np.ndarray | bytes, dtype: str = "int16") -> np.ndarray:
     return a
 
 
+def parse_word(w: tuple[str, float, float]) -> Word:
+    """A streamed word ``(text, start_s, end_s)`` (seconds from the utterance start) as a :class:`Word`.
+
+    Raises
+    ------
+    InputError
+        Not a (text, start, end) triple, no text left after normalising, or not ``0 <= start_s < end_s``.
+    """
+    try:
+        text, t0, t1 = str(w[0]), float(w[1]), float(w[2])
+    except (TypeError, ValueError, IndexError):
+        raise InputError(f"stream: a word must be (text, start_s, end_s), got {w!r}") from None
+    token = normalize_word(text).replace(" ", "")
+    if not token or not (math.isfinite(t0) and math.isfinite(t1)) or t1 <= t0 or t0 < 0:
+        raise InputError(f"stream: word {w!r} needs text and 0 <= start_s < end_s")
+    return Word(token, t0, t1, count_syllables(token))
+
+
 class SpeechStream:
     """Online beats, silent spans and features of speech that arrives in chunks.
 
@@ -152,8 +170,9 @@ class SpeechStream:
     def _n(self) -> int:
         return self._audio.shape[0] + sum(c.shape[0] for c in self._chunks)
 
-    def feed(self, chunk: np.ndarray | bytes, words: Sequence[tuple[str, float, float]] | None = None) -> bool:
-        """Append a chunk (mono int16/float32 at ``sample_rate``) and optional words ``(text, start_s, end_s)``.
+    def feed(self, chunk: np.ndarray | bytes, words: Sequence[tuple[str, float, float] | Word] | None = None) -> bool:
+        """Append a chunk (mono int16/float32 at ``sample_rate``) and optional words ``(text, start_s, end_s)``
+        (or :class:`Word`).
 
         Returns True when an update ran (new committed beats/spans/features may exist).
         """
@@ -176,17 +195,11 @@ class SpeechStream:
             return True
         return False
 
-    def _add_word(self, w: tuple[str, float, float]) -> None:
-        try:
-            text, t0, t1 = str(w[0]), float(w[1]), float(w[2])
-        except (TypeError, ValueError, IndexError):
-            raise InputError(f"stream: a word must be (text, start_s, end_s), got {w!r}") from None
-        token = normalize_word(text).replace(" ", "")
-        if not token or not (math.isfinite(t0) and math.isfinite(t1)) or t1 <= t0 or t0 < 0:
-            raise InputError(f"stream: word {w!r} needs text and 0 <= start_s < end_s")
-        if self.words and t0 < self.words[-1].start_s:
+    def _add_word(self, w: tuple[str, float, float] | Word) -> None:
+        word = w if isinstance(w, Word) else parse_word(w)
+        if self.words and word.start_s < self.words[-1].start_s:
             raise InputError(f"stream: word {w!r} starts before the previous word; give words in time order")
-        self.words.append(Word(token, t0, t1, count_syllables(token)))
+        self.words.append(word)
 
     def close(self) -> None:
         """The utterance is complete: flush the resampler and commit everything."""

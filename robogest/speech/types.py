@@ -125,3 +125,35 @@ class Speech:
     @property
     def n_frames(self) -> int:
         return self.features.n_frames
+
+    def crop(self, start_s: float) -> Speech:
+        """The speech from ``start_s`` on, with every time re-based to it (words starting earlier dropped).
+
+        ``start_s`` is snapped to the feature grid (``round(start_s * fps) / fps``) so frame ``t`` of the result is
+        frame ``t + k0`` of this one; a streaming planner uses it to keep each replan to a bounded stretch.
+        """
+        fps = self.features.fps
+        k0 = min(max(0, round(start_s * fps)), self.n_frames)
+        t0 = k0 / fps
+        if k0 == 0:
+            return self
+        f = self.features
+        feats = SpeechFeatures(
+            fps, f.mel_db[k0:], f.mfcc[k0:], f.rms[k0:], f.pitch_hz[k0:], f.word_features[k0:], f.filler[k0:],
+            f.silence[k0:],
+        )  # fmt: skip
+        words = tuple(Word(w.text, w.start_s - t0, w.end_s - t0, w.syllables) for w in self.words if w.start_s >= t0)
+        keep = self.beats_s >= t0
+        spans = tuple((max(a, t0) - t0, b - t0) for a, b in self.silent_spans if b > t0)
+        return Speech(
+            audio=self.audio[min(round(t0 * self.sr), self.audio.shape[0]) :],
+            sr=self.sr,
+            words=words,
+            beats_s=self.beats_s[keep] - t0,
+            beat_is_pseudo=self.beat_is_pseudo[keep],
+            silent_spans=spans,
+            noise_level=self.noise_level,
+            features=feats,
+            source=self.source,
+            text=" ".join(w.text for w in words) if self.words else "",
+        )
