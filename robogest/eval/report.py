@@ -19,6 +19,7 @@ from robogest.eval.features import feature_distances
 from robogest.eval.kinematics import (
     maje_mad,
     motion_statistics,
+    paper_statistics,
     silence_behaviour,
     statistics_ratio,
     wrist_speed_comparison,
@@ -75,12 +76,15 @@ def evaluate_motion(
     Returns
     -------
     dict
-        ``pred`` (acceleration/jerk), and where the inputs allow: ``gt``, ``ratio_to_gt``, ``wrist_speed``,
-        ``maje_mad``, ``features``, ``beat_sync`` (+ ``gt_beat_sync``), ``silence``.
+        ``pred`` (acceleration/jerk over all joints, root moving), ``paper_joint_sets`` (the same on each
+        paper's joint set, root fixed: :data:`robogest.eval.kinematics.PAPER_JOINT_SETS`), and where the inputs
+        allow: ``gt``, ``ratio_to_gt``, ``wrist_speed``, ``maje_mad``, ``features`` (+ ``features_noise_floor``),
+        ``beat_sync`` (+ ``gt_beat_sync``), ``silence``.
     """
     wr = wrist_indices(joint_names)
     out: dict = {"kind": "motion", "fps": float(fps), "n_frames": int(pred_pos.shape[0])}
     out["pred"] = motion_statistics(pred_pos, fps, joint_names)
+    out["paper_joint_sets"] = paper_statistics(pred_pos, fps, joint_names, gt_pos)
     if gt_pos is not None:
         out["gt"] = motion_statistics(gt_pos, fps, joint_names)
         out["ratio_to_gt"] = statistics_ratio(out["pred"], out["gt"])
@@ -168,10 +172,16 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
     """Headline ``(metric, value)`` rows of one result, in a fixed order, for the printed table."""
     rows: list[tuple[str, str]] = []
     if result["kind"] == "motion":
-        p = result["pred"]
-        rows += [("acceleration (cm/s²)", _fmt(p["acceleration_cm_s2"])), ("jerk (cm/s³)", _fmt(p["jerk_cm_s3"]))]
-        if "gt" in result:
-            r = result["ratio_to_gt"]
+        sets = result.get("paper_joint_sets", {})
+        p, r, where = result["pred"], result.get("ratio_to_gt"), "all joints"
+        if "gesticulator" in sets:  # the paper these statistics come from
+            g = sets["gesticulator"]
+            p, r, where = g["pred"], g.get("ratio_to_gt"), "Gesticulator joints"
+        rows += [
+            (f"acceleration (cm/s², {where})", _fmt(p["acceleration_cm_s2"])),
+            (f"jerk (cm/s³, {where})", _fmt(p["jerk_cm_s3"])),
+        ]
+        if r is not None:
             rows += [("acceleration / gt", _fmt(r["acceleration_ratio"])), ("jerk / gt", _fmt(r["jerk_ratio"]))]
         if "wrist_speed" in result:
             rows.append(("wrist speed Hellinger", _fmt(result["wrist_speed"]["hellinger"], 3)))
@@ -193,6 +203,9 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
             rows.append(
                 ("diversity kinetic (gt)", f"{_fmt(f['diversity_kinetic'])} ({_fmt(f['gt_diversity_kinetic'])})")
             )
+        if "fgd" in result:
+            f = result["fgd"]
+            rows.append(("FGD, BEAT2 evaluator (real vs real)", f"{_fmt(f['fgd'], 4)} ({_fmt(f['real_vs_real'], 4)})"))
         if "silence" in result:
             s = result["silence"]
             rows.append(
