@@ -15,7 +15,7 @@ import numpy as np
 
 from robogest.errors import InputError
 from robogest.eval.beats import beat_sync_report, stroke_sync
-from robogest.eval.features import feature_distances
+from robogest.eval.features import feature_distances, lexeme_entropy
 from robogest.eval.kinematics import (
     maje_mad,
     motion_statistics,
@@ -131,6 +131,13 @@ def evaluate_trajectory(
     wrist_pos_m : ndarray [shape=(T, W, 3)], metres, optional
         The robot's wrist sites along the trajectory; with ``onsets_s`` and ``audio_beats_s`` gives
         ``beat_sync.stroke_sync`` on the robot itself.
+
+    Returns
+    -------
+    dict
+        ``limits``, ``jerk``, ``time_to_rest``; where the inputs allow ``joint_error``, ``jerk_ratio_to_gt``,
+        ``tracking``, ``beat_sync``; ``lexeme_entropy`` (Rhythmic Gesticulator eq. 23) when the trajectory carries
+        its generator's ``lexemes`` annotation.
     """
     fps = traj.fps
     q = traj.q_rad
@@ -140,6 +147,12 @@ def evaluate_trajectory(
     out["jerk"] = joint_jerk(q, fps, names)
     silent = traj.silent.astype(bool) if silent_spans is None else list(silent_spans)
     out["time_to_rest"] = time_to_rest(q, fps, silent, traj.rest_q_rad)
+    notes = getattr(traj, "annotations", {})
+    if "lexemes" in notes:
+        n_lex = notes.get("n_lexemes")
+        n_lex = int(np.asarray(n_lex).reshape(-1)[0]) if n_lex is not None else None
+        out["lexeme_entropy"] = lexeme_entropy(np.asarray(notes["lexemes"]).astype(np.int64), n_lex)
+        out["lexeme_entropy"].update(n_blocks=int(np.asarray(notes["lexemes"]).size), n_lexemes=n_lex)
     if gt_q_rad is not None:
         out["joint_error"] = tracking_error(q, gt_q_rad, names)
         gj = joint_jerk(gt_q_rad, fps, names)["mean_rad_s3"]
@@ -235,6 +248,10 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
             rows.append(("joint error vs gt RMS (rad)", _fmt(result["joint_error"]["rms_rad"], 4)))
         if "tracking" in result:
             rows.append(("tracking error RMS (rad)", _fmt(result["tracking"]["rms_rad"], 4)))
+        if "lexeme_entropy" in result:
+            e = result["lexeme_entropy"]
+            value = f"{_fmt(e['entropy_nats'])} ({_fmt(e['normalized'])} of log N_s, {e['n_blocks']} blocks)"
+            rows.append(("lexeme entropy (nats)", value))
     if "beat_sync" in result:
         b = result["beat_sync"]
         rows.append((f"PMB δ={b['pmb']['delta_s']}s (%)", _sync(b["pmb"])))
