@@ -126,4 +126,5 @@ def speak(
     traj, ret, res = motion_to_trajectory(
         motion, robot, silent_spans=speech.silent_spans, fps=fps, q0=q0, safety=safety, audio_path=audio_path
     )
+    traj.annotations = dict(getattr(gen, "annotations", {}))  # plugins need not subclass Generator
     return SpeakResult(speech, motion, ret, res, traj)

@@ -31,7 +31,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "acceleration/jerk, wrist-speed histograms, MAJE/MAD, Fréchet feature distances, chance-corrected "
         "beat sync (PMB, BeatAlign on onset beats; stroke sync: wrist-speed peaks on audio onsets), silence "
         "behaviour; for trajectories limit violations, jerk, time to rest and stroke sync of the robot's wrist sites."
-        " Folders are paired by file stem.",
+        " With --fgd-weights, FGD with the BEAT2/EMAGE evaluator network. Folders are paired by file stem.",
     )
     p.add_argument("--pred", required=True, metavar="PATH", help="generated motion/trajectory file or folder")
     p.add_argument("--gt", metavar="PATH", help="ground-truth file or folder (same stems as --pred)")
@@ -44,6 +44,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         type=checks.number(2, 100_000, integer=True),
         default=100,
         help="circular shifts for chance-corrected beat scores, 2..100000 (default 100)",
+    )
+    p.add_argument(
+        "--fgd-weights",
+        metavar="FILE",
+        help="BEAT2/EMAGE evaluator AESKConv_240_100.bin (huggingface.co/H-Liu1997/emage_evaltools): report FGD "
+        "of SMPL-X .npz pairs (poses (T, 165) at 30 fps), per file and pooled over all files; needs torch",
     )
     p.add_argument(
         "--sim",
@@ -135,6 +141,47 @@ def _robot_wrists(traj, achieved_q_rad: np.ndarray | None) -> np.ndarray | None:
     return wrist_site_positions(robot, q)
 
 
+def smplx_poses(path: Path) -> tuple[np.ndarray, float] | None:
+    """Raw SMPL-X axis-angle ``poses`` ``(T, 165)`` and frame rate of an ``.npz``, or None if it has none."""
+    import numpy as np
+
+    from robogest.fileio import read_npz
+
+    if path.suffix.lower() != ".npz" or "poses" not in npz_keys(path):
+        return None
+    data = read_npz(path, what="SMPL-X")
+    poses = np.asarray(data["poses"])
+    rate = next((data[k] for k in ("mocap_frame_rate", "mocap_framerate", "fps") if k in data), None)
+    if poses.ndim != 2 or poses.shape[1] != 165 or rate is None:
+        return None
+    return poses.astype(np.float64), float(np.asarray(rate).reshape(-1)[0])
+
+
+def fgd_of_pair(evaluator, pred_path: Path, gt_path: Path | None) -> dict:
+    """FGD of one SMPL-X pair and its real-vs-real floor (gt's first half against its second half).
+
+    ``_features`` (pred, gt latent features) is kept for the pooled FGD and dropped from JSON.
+    """
+    from robogest.eval.features import frechet_distance
+
+    if gt_path is None:
+        raise InputError(f"{pred_path}: --fgd-weights compares with ground truth; pass --gt")
+    sides = {}
+    for flag, path in (("--pred", pred_path), ("--gt", gt_path)):
+        got = smplx_poses(path)
+        if got is None:
+            raise InputError(
+                f"{path}: --fgd-weights needs SMPL-X .npz files with 'poses' (T, 165) and 'mocap_frame_rate' for "
+                f"{flag}; the evaluator reads all 55 SMPL-X joints, which BVH/canonical motion does not have"
+            )
+        sides[flag] = evaluator.features(got[0], str(path), got[1])
+    fp, fg = sides["--pred"], sides["--gt"]
+    half = len(fg) // 2
+    floor = frechet_distance(fg[:half], fg[half:]) if half >= 2 else float("nan")
+    return {"fgd": frechet_distance(fp, fg), "real_vs_real": floor, "n_latent_pred": len(fp),
+            "n_latent_gt": len(fg), "_features": (fp, fg)}  # fmt: skip
+
+
 def evaluate_files(
     pred_path: Path,
     gt_path: Path | None,
@@ -142,8 +189,10 @@ def evaluate_files(
     transcript_path: Path | None = None,
     n_shifts: int = 100,
     sim: bool = False,
+    fgd_evaluator=None,
 ) -> dict:
-    """Metrics of one pred file (with its gt/audio files, any may be None) as a nested dict."""
+    """Metrics of one pred file (with its gt/audio files, any may be None) as a nested dict; FGD with
+    ``fgd_evaluator`` (:class:`robogest.eval.fgd.FGDEvaluator`)."""
     import numpy as np
 
     from robogest.eval.report import evaluate_motion, evaluate_trajectory
@@ -193,6 +242,8 @@ def evaluate_files(
         )
         if gt is not None and gt.fps != pred.fps:
             res["gt_resampled_from_fps"] = float(gt.fps)
+    if fgd_evaluator is not None:
+        res["fgd"] = fgd_of_pair(fgd_evaluator, pred_path, gt_path)
     res["files"] = {
         "pred": str(pred_path),
         "gt": str(gt_path) if gt_path else None,
@@ -235,6 +286,27 @@ def _print_table(results: dict[str, dict]) -> None:
         print_table(TextTable(title, ["metric", "value"], rows, right_aligned=["value"]))
 
 
+def _drop_private(obj):
+    """``obj`` without dict keys starting with ``_`` (objects and arrays kept for plots and pooling)."""
+    if isinstance(obj, dict):
+        return {k: _drop_private(v) for k, v in obj.items() if not str(k).startswith("_")}
+    return obj
+
+
+def _pooled_fgd(results: dict[str, dict]) -> dict | None:
+    """FGD over the latent frames of all files together (how papers report it over a test set)."""
+    import numpy as np
+
+    from robogest.eval.features import frechet_distance
+
+    feats = [r["fgd"]["_features"] for r in results.values() if "fgd" in r]
+    if not feats:
+        return None
+    fp = np.concatenate([p for p, _ in feats])
+    fg = np.concatenate([g for _, g in feats])
+    return {"fgd": frechet_distance(fp, fg), "n_files": len(feats), "n_latent_pred": len(fp), "n_latent_gt": len(fg)}
+
+
 def run_eval(args: argparse.Namespace) -> int:
     pred_files = _files(Path(args.pred), MOTION_SUFFIXES, "motion/trajectory")
     single = Path(args.pred).is_file()
@@ -246,21 +318,34 @@ def run_eval(args: argparse.Namespace) -> int:
         {"--pred": pred_files, "--gt": gt_files, "--audio": audio_files, "--transcript": tr_files},
         folders={"--plots": args.plots},
     )
+    evaluator = None
+    if args.fgd_weights:
+        from robogest.eval.fgd import load_evaluator
+
+        evaluator = load_evaluator(args.fgd_weights)
     results: dict[str, dict] = {}
     for pf in pred_files:
         gf = _match(pf, gt_files, single, "ground truth")
         af = _match(pf, audio_files, single, "audio")
         tf = _match(pf, tr_files, single, "transcript")
         key = pf.stem if pf.stem not in results else str(pf)
-        results[key] = evaluate_files(pf, gf, af, tf, args.shifts, sim=args.sim)
+        results[key] = evaluate_files(pf, gf, af, tf, args.shifts, sim=args.sim, fgd_evaluator=evaluator)
     _print_table(results)
+    pooled = _pooled_fgd(results) if evaluator is not None else None
+    if pooled is not None:
+        print(
+            f"FGD pooled over {pooled['n_files']} files: {pooled['fgd']:.4f} (latent frames {pooled['n_latent_pred']}"
+            f" generated, {pooled['n_latent_gt']} real)"
+        )
     if args.plots:
         for path in _plots(results, Path(args.plots)):
             print(f"wrote {path}")
     if args.json:
         from robogest.eval.report import write_json_atomic
 
-        clean = {k: {kk: vv for kk, vv in v.items() if not kk.startswith("_")} for k, v in results.items()}
-        write_json_atomic({"results": clean}, args.json)
+        out: dict = {"results": results}
+        if pooled is not None:
+            out["fgd_pooled"] = pooled
+        write_json_atomic(_drop_private(out), args.json)
         print(f"wrote {args.json}")
     return 0

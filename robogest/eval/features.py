@@ -93,6 +93,8 @@ def window_features(
 ) -> np.ndarray:
     """Feature matrix ``(N, F)`` of all windows; ``kind`` is ``"kinetic"`` or ``"geometric"``."""
     wins = sliding_windows(pos, fps, window_s, hop_s)
+    if len(wins) == 0:
+        return np.zeros((0, 0))  # shorter than one window (e.g. half of a short take for the noise floor)
     if kind == "kinetic":
         return np.array([kinetic_features(w, fps) for w in wins]).reshape(len(wins), -1)
     if kind == "geometric":

@@ -87,6 +87,68 @@ def motion_statistics(pos: np.ndarray, fps: float, joint_names: Sequence[str] | 
     }
 
 
+#: Joint sets on which the papers compute their motion statistics, on the canonical skeleton. Root translation
+#: is removed first (positions relative to the pelvis) because every paper fixes or drops the root.
+#:
+#: - ``gesticulator``: Gesticulator §5.1 averages acceleration and jerk "over all frames for all 14 3D joints
+#:   (except for the hips, which were fixed)", the Trinity upper body; here the 13 canonical upper-body joints
+#:   below the pelvis that are not direction-only leaves (``nose``, ``l_hand``, ``r_hand``).
+#: - ``s2ag``: S2AG §5.2 (and the Rhythmic Gesticulator on TED) use the 10 TED Gesture joints: spine, neck, nose,
+#:   head, shoulders, elbows, wrists (TED's spine is the skeleton's fixed anchor; the canonical ``spine`` is the
+#:   nearest joint).
+PAPER_JOINT_SETS: dict[str, tuple[str, ...]] = {
+    "gesticulator": (
+        "spine", "spine1", "spine2", "neck", "head", "l_collar", "l_shoulder", "l_elbow", "l_wrist",
+        "r_collar", "r_shoulder", "r_elbow", "r_wrist",
+    ),
+    "s2ag": ("spine", "neck", "nose", "head", "l_shoulder", "l_elbow", "l_wrist", "r_shoulder", "r_elbow", "r_wrist"),
+}  # fmt: skip
+#: The joint every set is made relative to (root translation removed).
+ROOT_JOINT = "pelvis"
+
+
+def joint_set_positions(pos: np.ndarray, joint_names: Sequence[str], joint_set: Sequence[str]) -> np.ndarray | None:
+    """Positions ``(T, K, 3)`` of ``joint_set`` relative to the pelvis, or None if a joint is missing.
+
+    Parameters
+    ----------
+    pos : ndarray [shape=(T, J, 3)], metres
+    joint_names : sequence of str, length J
+    joint_set : sequence of str, length K
+    """
+    names = list(joint_names)
+    if ROOT_JOINT not in names or any(j not in names for j in joint_set):
+        return None
+    pos = np.asarray(pos, dtype=np.float64)
+    rel = pos - pos[:, names.index(ROOT_JOINT)][:, None, :]
+    return rel[:, [names.index(j) for j in joint_set]]
+
+
+def paper_statistics(
+    pred_pos: np.ndarray, fps: float, joint_names: Sequence[str], gt_pos: np.ndarray | None = None
+) -> dict:
+    """Acceleration and jerk on each paper's joint set (:data:`PAPER_JOINT_SETS`), root translation removed.
+
+    Returns
+    -------
+    dict
+        Per set present in the skeleton: ``joints``, ``pred`` (as :func:`motion_statistics`) and, with
+        ``gt_pos``, ``gt`` and ``ratio_to_gt``.
+    """
+    out: dict = {}
+    for name, joints in PAPER_JOINT_SETS.items():
+        p = joint_set_positions(pred_pos, joint_names, joints)
+        if p is None:
+            continue
+        entry: dict = {"joints": list(joints), "pred": motion_statistics(p, fps, joints)}
+        g = None if gt_pos is None else joint_set_positions(gt_pos, joint_names, joints)
+        if g is not None:
+            entry["gt"] = motion_statistics(g, fps, joints)
+            entry["ratio_to_gt"] = statistics_ratio(entry["pred"], entry["gt"])
+        out[name] = entry
+    return out
+
+
 def statistics_ratio(pred_stats: dict, gt_stats: dict) -> dict:
     """Ratios pred/gt of the overall acceleration and jerk (1.0 = as lively/smooth as the ground truth).
 

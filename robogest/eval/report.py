@@ -15,10 +15,11 @@ import numpy as np
 
 from robogest.errors import InputError
 from robogest.eval.beats import beat_sync_report, stroke_sync
-from robogest.eval.features import feature_distances
+from robogest.eval.features import feature_distances, lexeme_entropy
 from robogest.eval.kinematics import (
     maje_mad,
     motion_statistics,
+    paper_statistics,
     silence_behaviour,
     statistics_ratio,
     wrist_speed_comparison,
@@ -75,12 +76,15 @@ def evaluate_motion(
     Returns
     -------
     dict
-        ``pred`` (acceleration/jerk), and where the inputs allow: ``gt``, ``ratio_to_gt``, ``wrist_speed``,
-        ``maje_mad``, ``features``, ``beat_sync`` (+ ``gt_beat_sync``), ``silence``.
+        ``pred`` (acceleration/jerk over all joints, root moving), ``paper_joint_sets`` (the same on each
+        paper's joint set, root fixed: :data:`robogest.eval.kinematics.PAPER_JOINT_SETS`), and where the inputs
+        allow: ``gt``, ``ratio_to_gt``, ``wrist_speed``, ``maje_mad``, ``features`` (+ ``features_noise_floor``),
+        ``beat_sync`` (+ ``gt_beat_sync``), ``silence``.
     """
     wr = wrist_indices(joint_names)
     out: dict = {"kind": "motion", "fps": float(fps), "n_frames": int(pred_pos.shape[0])}
     out["pred"] = motion_statistics(pred_pos, fps, joint_names)
+    out["paper_joint_sets"] = paper_statistics(pred_pos, fps, joint_names, gt_pos)
     if gt_pos is not None:
         out["gt"] = motion_statistics(gt_pos, fps, joint_names)
         out["ratio_to_gt"] = statistics_ratio(out["pred"], out["gt"])
@@ -127,6 +131,13 @@ def evaluate_trajectory(
     wrist_pos_m : ndarray [shape=(T, W, 3)], metres, optional
         The robot's wrist sites along the trajectory; with ``onsets_s`` and ``audio_beats_s`` gives
         ``beat_sync.stroke_sync`` on the robot itself.
+
+    Returns
+    -------
+    dict
+        ``limits``, ``jerk``, ``time_to_rest``; where the inputs allow ``joint_error``, ``jerk_ratio_to_gt``,
+        ``tracking``, ``beat_sync``; ``lexeme_entropy`` (Rhythmic Gesticulator eq. 23) when the trajectory carries
+        its generator's ``lexemes`` annotation.
     """
     fps = traj.fps
     q = traj.q_rad
@@ -136,6 +147,12 @@ def evaluate_trajectory(
     out["jerk"] = joint_jerk(q, fps, names)
     silent = traj.silent.astype(bool) if silent_spans is None else list(silent_spans)
     out["time_to_rest"] = time_to_rest(q, fps, silent, traj.rest_q_rad)
+    notes = getattr(traj, "annotations", {})
+    if "lexemes" in notes:
+        n_lex = notes.get("n_lexemes")
+        n_lex = int(np.asarray(n_lex).reshape(-1)[0]) if n_lex is not None else None
+        out["lexeme_entropy"] = lexeme_entropy(np.asarray(notes["lexemes"]).astype(np.int64), n_lex)
+        out["lexeme_entropy"].update(n_blocks=int(np.asarray(notes["lexemes"]).size), n_lexemes=n_lex)
     if gt_q_rad is not None:
         out["joint_error"] = tracking_error(q, gt_q_rad, names)
         gj = joint_jerk(gt_q_rad, fps, names)["mean_rad_s3"]
@@ -168,10 +185,16 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
     """Headline ``(metric, value)`` rows of one result, in a fixed order, for the printed table."""
     rows: list[tuple[str, str]] = []
     if result["kind"] == "motion":
-        p = result["pred"]
-        rows += [("acceleration (cm/s²)", _fmt(p["acceleration_cm_s2"])), ("jerk (cm/s³)", _fmt(p["jerk_cm_s3"]))]
-        if "gt" in result:
-            r = result["ratio_to_gt"]
+        sets = result.get("paper_joint_sets", {})
+        p, r, where = result["pred"], result.get("ratio_to_gt"), "all joints"
+        if "gesticulator" in sets:  # the paper these statistics come from
+            g = sets["gesticulator"]
+            p, r, where = g["pred"], g.get("ratio_to_gt"), "Gesticulator joints"
+        rows += [
+            (f"acceleration (cm/s², {where})", _fmt(p["acceleration_cm_s2"])),
+            (f"jerk (cm/s³, {where})", _fmt(p["jerk_cm_s3"])),
+        ]
+        if r is not None:
             rows += [("acceleration / gt", _fmt(r["acceleration_ratio"])), ("jerk / gt", _fmt(r["jerk_ratio"]))]
         if "wrist_speed" in result:
             rows.append(("wrist speed Hellinger", _fmt(result["wrist_speed"]["hellinger"], 3)))
@@ -193,6 +216,9 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
             rows.append(
                 ("diversity kinetic (gt)", f"{_fmt(f['diversity_kinetic'])} ({_fmt(f['gt_diversity_kinetic'])})")
             )
+        if "fgd" in result:
+            f = result["fgd"]
+            rows.append(("FGD, BEAT2 evaluator (real vs real)", f"{_fmt(f['fgd'], 4)} ({_fmt(f['real_vs_real'], 4)})"))
         if "silence" in result:
             s = result["silence"]
             rows.append(
@@ -222,6 +248,10 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
             rows.append(("joint error vs gt RMS (rad)", _fmt(result["joint_error"]["rms_rad"], 4)))
         if "tracking" in result:
             rows.append(("tracking error RMS (rad)", _fmt(result["tracking"]["rms_rad"], 4)))
+        if "lexeme_entropy" in result:
+            e = result["lexeme_entropy"]
+            value = f"{_fmt(e['entropy_nats'])} ({_fmt(e['normalized'])} of log N_s, {e['n_blocks']} blocks)"
+            rows.append(("lexeme entropy (nats)", value))
     if "beat_sync" in result:
         b = result["beat_sync"]
         rows.append((f"PMB δ={b['pmb']['delta_s']}s (%)", _sync(b["pmb"])))

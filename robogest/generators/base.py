@@ -19,6 +19,13 @@ class Generator(ABC):
 
     name: str = ""
 
+    @property
+    def annotations(self) -> dict:
+        """What the last :meth:`generate` decided that evaluation can use, as named numeric arrays (e.g. the
+        Rhythmic Gesticulator's per-block ``lexemes`` and lexicon size ``n_lexemes``); empty by default. The
+        pipeline stores them in the trajectory so that ``robogest eval`` finds them in a saved file."""
+        return dict(getattr(self, "_annotations", {}))
+
     @abstractmethod
     def generate(self, speech: Speech, seed: int = 0) -> HumanMotion:
         """Motion for ``speech``; ``seed`` fixes every random choice."""

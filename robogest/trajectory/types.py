@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -38,6 +38,9 @@ class Trajectory:
         The speech audio this trajectory goes with ("" if none).
     robot : str
         Robot name.
+    annotations : dict of str to ndarray
+        Numeric arrays the generator left for evaluation (e.g. ``lexemes``, ``n_lexemes`` of the Rhythmic
+        Gesticulator); saved as ``annotation_<name>``.
     """
 
     t_s: np.ndarray
@@ -51,6 +54,7 @@ class Trajectory:
     silent: np.ndarray
     audio_path: str = ""
     robot: str = ""
+    annotations: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         t, j = self.q_rad.shape
@@ -94,6 +98,7 @@ class Trajectory:
         arrays["joint_names"] = np.array(self.joint_names)
         arrays["audio_path"] = np.array(self.audio_path)
         arrays["robot"] = np.array(self.robot)
+        arrays.update({f"{ANNOTATION_PREFIX}{k}": np.asarray(v) for k, v in self.annotations.items()})
         with atomic_path(path, ".npz") as tmp:
             np.savez(tmp, **arrays)
 
@@ -129,9 +134,16 @@ class Trajectory:
             if v.dtype.kind != "U" or v.ndim != 0:
                 raise InputError(f"{path}: {key} must be one string, got {v.dtype} {v.shape}")
             text[key] = str(v)
-        return cls(t_s=t, q_rad=q, joint_names=[str(s) for s in names], silent=silent != 0, **kw, **text)
+        notes = {
+            k.removeprefix(ANNOTATION_PREFIX): _numbers(z, k, None, path) for k in z if k.startswith(ANNOTATION_PREFIX)
+        }
+        return cls(
+            t_s=t, q_rad=q, joint_names=[str(s) for s in names], silent=silent != 0, **kw, **text, annotations=notes
+        )
 
 
+#: Key prefix of :attr:`Trajectory.annotations` in a saved ``.npz``.
+ANNOTATION_PREFIX = "annotation_"
 #: Longest trajectory robogest loads (and so plays), seconds.
 MAX_DURATION_S = 24 * 3600.0
 #: Sample rates a trajectory may have, Hz (the range ``--fps`` accepts).

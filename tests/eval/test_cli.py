@@ -132,3 +132,17 @@ def test_trajectory_with_audio_reports_chance_corrected_beats(tmp_path):
     b = json.loads(out.read_text())["results"]["a"]["beat_sync"]
     assert b["n_audio_beats"] > 5
     assert {"score", "null_mean", "null_std", "z", "n_shifts"} <= set(b["pmb"]) and b["pmb"]["n_shifts"] == 100
+
+
+def test_trajectory_without_lexemes_has_no_lexeme_entropy_and_one_with_has_it(tmp_path):
+    make_traj(tmp_path / "a.npz")
+    traj = Trajectory.load(tmp_path / "a.npz")
+    assert traj.annotations == {}
+    assert main(["eval", "--pred", str(tmp_path / "a.npz"), "--json", str(tmp_path / "a.json")]) == 0
+    assert "lexeme_entropy" not in json.loads((tmp_path / "a.json").read_text())["results"]["a"]
+    traj.annotations = {"lexemes": np.array([0, 0, 1, 1]), "n_lexemes": np.int64(4)}
+    traj.save(tmp_path / "b.npz")
+    np.testing.assert_array_equal(Trajectory.load(tmp_path / "b.npz").annotations["lexemes"], [0, 0, 1, 1])
+    assert main(["eval", "--pred", str(tmp_path / "b.npz"), "--json", str(tmp_path / "b.json")]) == 0
+    ent = json.loads((tmp_path / "b.json").read_text())["results"]["b"]["lexeme_entropy"]
+    assert ent["entropy_nats"] == pytest.approx(np.log(2)) and ent["normalized"] == pytest.approx(0.5)

@@ -91,3 +91,10 @@ def test_lexeme_entropy():
     assert lexeme_entropy(np.zeros(10, int), 4)["entropy_nats"] == 0.0
     skew = lexeme_entropy(np.array([0, 0, 0, 1]))
     assert skew["entropy_nats"] == pytest.approx(-(0.75 * np.log(0.75) + 0.25 * np.log(0.25)))
+
+
+def test_motion_shorter_than_a_window_gives_nan_distances():
+    """Half of a short take (the noise floor) has no window: NaN, not a crash."""
+    pos = np.zeros((40, 3, 3))
+    out = feature_distances(pos, np.zeros((100, 3, 3)), 30.0)
+    assert np.isnan(out["fd_kinetic"]) and np.isnan(out["fd_geometric"]) and out["n_windows_pred"] == 0

@@ -117,3 +117,32 @@ def test_nan_input_is_an_input_error():
     pos[3, 0, 0] = np.nan
     with pytest.raises(InputError):
         motion_statistics(pos, FPS)
+
+
+def test_paper_joint_sets_fix_the_root_and_keep_each_papers_joints():
+    """A pelvis that only slides moves every joint in world space, but no joint of a paper's set (root fixed)."""
+    from robogest.eval.kinematics import PAPER_JOINT_SETS, paper_statistics
+    from robogest.motion.skeleton import CANONICAL
+
+    names = list(CANONICAL.names)
+    pos = np.tile(CANONICAL.offsets_m.cumsum(axis=0)[None], (121, 1, 1))  # any fixed pose
+    slide = sine_motion(0.2, 1.0, 2.0, n_joints=1)  # (121, 1, 3)
+    moved = pos + slide
+    wrist = names.index("l_wrist")
+    moved[:, wrist, 1] += 0.1 * np.sin(2 * np.pi * 2.0 * np.arange(121) / FPS)  # the wrist also waves
+    assert motion_statistics(moved, FPS, names)["per_joint_acceleration_cm_s2"]["head"] > 100
+    sets = paper_statistics(moved, FPS, names, gt_pos=moved)
+    assert set(sets) == {"gesticulator", "s2ag"}
+    g = sets["gesticulator"]
+    assert len(g["joints"]) == 13 and "pelvis" not in g["joints"] and "nose" not in g["joints"]
+    assert len(sets["s2ag"]["joints"]) == 10 == len(PAPER_JOINT_SETS["s2ag"])
+    per = g["pred"]["per_joint_acceleration_cm_s2"]
+    assert per["head"] == pytest.approx(0.0, abs=1e-6) and per["l_wrist"] > 100
+    assert g["pred"]["acceleration_cm_s2"] == pytest.approx(per["l_wrist"] / 13, rel=1e-9)
+    assert g["ratio_to_gt"]["jerk_ratio"] == pytest.approx(1.0)
+
+
+def test_paper_joint_sets_are_skipped_on_skeletons_without_their_joints():
+    from robogest.eval.kinematics import paper_statistics
+
+    assert paper_statistics(sine_motion(0.1, 1.0, 1.0, n_joints=3), FPS, ("pelvis", "l_wrist", "r_wrist")) == {}

@@ -495,3 +495,36 @@ def test_speaker_identity_conditions_the_generator(takes_and_speech):
     old = dataclasses.asdict(cfg)
     del old["speakers"], old["speaker_dim"]
     assert type(cfg).from_dict(old).speaker_dim == 0  # a checkpoint from before loads without the embedding
+
+
+def test_speak_saves_lexemes_and_eval_reports_their_entropy(rhythmic_run, fixture_data, tmp_path, capsys):
+    """`robogest speak --generator rhythmic --save` keeps the blocks' lexemes in the trajectory file;
+    `robogest eval --json` reports their entropy (eq. 23) from that file alone."""
+    import json
+
+    from robogest.cli.main import main
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
+    from robogest.speech import load_speech
+    from robogest.trajectory.types import Trajectory
+
+    take = discover_takes(fixture_data)[1]
+    saved = tmp_path / "talk.npz"
+    rc = main(["speak", "--audio", str(take.audio), "--transcript", str(take.transcript), "--generator", "rhythmic",
+               "--checkpoint", str(rhythmic_run), "--save", str(saved)])  # fmt: skip
+    assert rc == 0
+    notes = Trajectory.load(saved).annotations
+    gen = RhythmicGenerator(rhythmic_run)
+    gen.generate(load_speech(take.audio, take.transcript))
+    np.testing.assert_array_equal(notes["lexemes"], gen.annotations["lexemes"])
+    assert (
+        int(notes["n_lexemes"]) == SMALL["lexicon_size"] and len(notes["block_bounds_s"]) == len(notes["lexemes"]) + 1
+    )
+    out = tmp_path / "m.json"
+    assert main(["eval", "--pred", str(saved), "--json", str(out)]) == 0
+    ent = json.loads(out.read_text())["results"]["talk"]["lexeme_entropy"]
+    from robogest.eval import lexeme_entropy
+
+    expected = lexeme_entropy(gen.annotations["lexemes"], SMALL["lexicon_size"])
+    assert ent["entropy_nats"] == pytest.approx(expected["entropy_nats"]) and ent["entropy_nats"] > 0
+    assert ent["n_blocks"] == len(notes["lexemes"]) and ent["n_lexemes"] == SMALL["lexicon_size"]
+    assert "lexeme entropy (nats)" in capsys.readouterr().out

@@ -160,10 +160,16 @@ class RhythmicGenerator(CheckpointGenerator):
         Each lexeme is the interpreter's most likely one (the paper), or, with a lexeme temperature > 0 (the
         ``lexeme_temperature`` option, else the checkpoint config's), sampled from its softmax at that temperature
         with a torch generator seeded by ``seed`` (the same seed gives the same motion, another seed other lexemes);
-        silent blocks still get the silent lexeme. The Gumbel latent takes its most likely categories.
+        silent blocks still get the silent lexeme. The Gumbel latent takes its most likely categories. The blocks'
+        lexemes are kept in :attr:`annotations`.
         """
         s = self.at_model_rate(speech)
         g = torch.Generator().manual_seed(int(seed))
         temperature = self.config.lexeme_temperature if self.temperature is None else self.temperature
         plan = self.generate_blocks(s, temperature=temperature, generator=g)
+        self._annotations = {  # for lexeme entropy (eq. 23) in `robogest eval`
+            "lexemes": plan.lexemes.astype(np.int64),
+            "n_lexemes": np.int64(self.config.lexicon_size),
+            "block_bounds_s": plan.bounds / s.fps,
+        }
         return expmap_to_motion(plan.poses, s.fps).resample(speech.fps, n_frames=speech.n_frames)
