@@ -202,13 +202,15 @@ def evaluate_files(
     if gt is not None and gt_kind != kind:
         raise InputError(f"{gt_path}: is a {gt_kind} but {pred_path} is a {kind}; compare like with like")
     beats = spans = onsets = None
+    events = ""
     if audio_path is not None:
-        from robogest.eval.beats import audio_onsets
+        from robogest.eval.beats import stroke_sync_events
 
         speech = load_speech_for(audio_path, transcript_path)
         beats = np.asarray(speech.beats_s, dtype=np.float64)[~np.asarray(speech.beat_is_pseudo, dtype=bool)]
         spans = [tuple(map(float, s)) for s in speech.silent_spans]
-        onsets = audio_onsets(speech.audio, speech.sr)
+        # stressed vowels when the transcript is a forced alignment with phones, else librosa onsets (unvalidated)
+        onsets, events = stroke_sync_events(speech.audio, speech.sr, transcript_path)
     res: dict
     if kind == "trajectory":
         gt_q = None
@@ -244,6 +246,9 @@ def evaluate_files(
             res["gt_resampled_from_fps"] = float(gt.fps)
     if fgd_evaluator is not None:
         res["fgd"] = fgd_of_pair(fgd_evaluator, pred_path, gt_path)
+    for key in ("beat_sync", "gt_beat_sync"):
+        if "stroke_sync" in res.get(key, {}):
+            res[key]["stroke_sync"]["events"] = events
     res["files"] = {
         "pred": str(pred_path),
         "gt": str(gt_path) if gt_path else None,

@@ -16,6 +16,7 @@ from robogest.eval.beats import (
     pmb_curve,
     stroke_peaks,
     stroke_sync,
+    stroke_sync_events,
 )
 from robogest.eval.features import (
     diversity,
@@ -66,6 +67,7 @@ __all__ = [
     "statistics_ratio",
     "stroke_peaks",
     "stroke_sync",
+    "stroke_sync_events",
     "time_to_rest",
     "tracking_error",
     "window_features",

@@ -71,7 +71,7 @@ def evaluate_motion(
     n_shifts : int
         Circular shifts for the chance-corrected beat scores.
     onsets_s : ndarray [shape=(K,)], seconds, optional
-        :func:`robogest.eval.beats.audio_onsets` of the speech, for ``beat_sync.stroke_sync``.
+        :func:`robogest.eval.beats.stroke_sync_events` of the speech, for ``beat_sync.stroke_sync``.
 
     Returns
     -------
@@ -178,7 +178,8 @@ def _sync(d: dict) -> str:
 
 
 def _stroke(d: dict) -> str:
-    return f"{_fmt(d['hit'])} (chance {_fmt(d['chance'])}±{_fmt(d['chance_std'])}, z={_fmt(d['z'], 1)})"
+    s = f"{_fmt(d['hit'])} (chance {_fmt(d['chance'])}±{_fmt(d['chance_std'])}, z={_fmt(d['z'], 1)})"
+    return s + (f" vs {d['events']}" if d.get("events") else "")
 
 
 def summary_rows(result: dict) -> list[tuple[str, str]]:
@@ -257,7 +258,8 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
         rows.append((f"PMB δ={b['pmb']['delta_s']}s (%)", _sync(b["pmb"])))
         rows.append((f"BeatAlign σ={b['beat_align']['sigma_s']}s", _sync(b["beat_align"])))
         if "stroke_sync" in b:
-            rows.append(("stroke sync δ=0.1s (hit rate)", _stroke(b["stroke_sync"])))
+            lo, hi = b["stroke_sync"]["window_s"]
+            rows.append((f"stroke sync {lo:g}..{hi:g}s (hit rate)", _stroke(b["stroke_sync"])))
     if "gt_beat_sync" in result:
         rows.append(("gt PMB δ=0.2s (%)", _sync(result["gt_beat_sync"]["pmb"])))
         if "stroke_sync" in result["gt_beat_sync"]:

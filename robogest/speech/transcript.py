@@ -167,6 +167,41 @@ def _read_textgrid(p: Path) -> Transcript:
     return _timed(entries, p)
 
 
+#: ARPAbet vowel labels end in a stress digit: 1 primary, 2 secondary, 0 unstressed (CMUdict, MFA, BEAT).
+_ARPABET_VOWEL_RE = re.compile(r"^[A-Z]{2}([012])$")
+
+
+def read_stressed_vowels(path: str | Path) -> np.ndarray | None:
+    """Onsets of the stressed vowels in a TextGrid's ``phones`` tier, seconds ``(K,)``; None when there is none.
+
+    Forced aligners that use the CMU dictionary (Montreal Forced Aligner, the BEAT/BEAT2 TextGrids) label
+    vowels in ARPAbet with a stress digit; the onsets of vowels with primary or secondary stress (``1``,
+    ``2``) are where English puts its prominent syllables. Returns None (not an error) for other transcript
+    formats and for TextGrids without a ``phones``/``phone`` tier or without stress-marked vowels, so a
+    caller can fall back to something else.
+    """
+    p = Path(path)
+    if p.suffix.lower() != ".textgrid":
+        return None
+    try:
+        from praatio import textgrid
+
+        tg = textgrid.openTextgrid(str(p), includeEmptyIntervals=False)
+    except Exception as exc:  # praatio raises assorted exception types for malformed files
+        raise InputError(f"transcript {p}: not a readable Praat TextGrid ({exc})") from exc
+    tier = next((n for n in tg.tierNames if n.lower() in ("phones", "phone")), None)
+    if tier is None:
+        return None
+    stressed, any_vowel = [], False
+    for e in tg.getTier(tier).entries:
+        m = _ARPABET_VOWEL_RE.match(str(e.label).strip().upper())
+        if m:
+            any_vowel = True
+            if m.group(1) in "12":
+                stressed.append(float(e.start))
+    return np.sort(np.asarray(stressed, dtype=np.float64)) if any_vowel else None
+
+
 def _timed(entries: Sequence[tuple[float, float, str]], p: Path) -> Transcript:
     """Build timed words from (start, end, label), dropping pauses and punctuation-only labels.
 

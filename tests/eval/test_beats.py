@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from robogest.errors import InputError
 from robogest.eval.beats import (
     beat_align,
     beat_sync_report,
@@ -108,7 +109,7 @@ def test_beat_sync_report_on_beat_locked_motion():
     pos = _speed_minima_motion(0.5, 30.0)
     rng = np.random.default_rng(3)
     ab = np.arange(1, 60) * 0.5 + rng.normal(0, 0.01, 59)
-    r = beat_sync_report(pos, FPS, ab, wrists=[0, 1], n_shifts=50, onsets_s=np.arange(60) * 0.5 + 0.25)
+    r = beat_sync_report(pos, FPS, ab, wrists=[0, 1], n_shifts=50, onsets_s=np.arange(60) * 0.5 + 0.35)
     assert r["pmb"]["score"] == pytest.approx(100.0)
     assert set(r) >= {"pmb", "beat_align", "stroke_sync", "pmb_curve", "n_motion_beats"}
     assert r["stroke_sync"]["hit"] == pytest.approx(1.0)
@@ -134,15 +135,19 @@ def _strokes_at(times_s: np.ndarray, seconds: float, fps: float = FPS) -> np.nda
 
 def test_stroke_hit_rate_closed_form():
     on = np.array([1.0, 2.0, 3.0])
-    assert stroke_hit_rate(np.array([1.05, 2.5]), on) == 0.5
-    assert stroke_hit_rate(np.array([1.05, 2.5]), on, silent_spans=[(2.4, 2.6)]) == 1.0  # 2.5 is in a pause
+    # an event 0..0.2 s after the peak is a hit; one before it or later than 0.2 s is not
+    assert stroke_hit_rate(np.array([0.85, 1.05, 2.5]), on) == pytest.approx(1 / 3)
+    assert stroke_hit_rate(np.array([0.85, 1.05, 2.5]), on, window_s=(-0.1, 0.16)) == pytest.approx(2 / 3)
+    assert stroke_hit_rate(np.array([0.85, 2.5]), on, silent_spans=[(2.4, 2.6)]) == 1.0  # 2.5 is in a pause
     assert np.isnan(stroke_hit_rate(np.array([2.5]), on, silent_spans=[(2.0, 3.0)]))
     assert stroke_hit_rate(np.array([1.0]), np.array([])) == 0.0
+    with pytest.raises(InputError, match=r"window \(0.2, 0.0\): the end must not precede"):
+        stroke_hit_rate(np.array([1.0]), on, window_s=(0.2, 0.0))
 
 
-def test_stroke_sync_strokes_on_onsets_score_high(rng):
+def test_stroke_sync_strokes_leading_onsets_score_high(rng):
     on = audio_beats(rng, 40.0)
-    strokes = np.sort(rng.choice(on, size=50, replace=False))
+    strokes = np.sort(rng.choice(on, size=50, replace=False)) - 0.1  # speed peaks 0.1 s before the syllables
     r = stroke_sync(_strokes_at(strokes, 40.0), FPS, on, n_shifts=60)
     assert r["hit"] > 0.95 and r["z"] > 4.0, r
     assert r["n_peaks"] == 50 and r["n_onsets"] == on.size and r["n_shifts"] == 60
@@ -153,16 +158,15 @@ def test_stroke_sync_strokes_off_onsets_score_low(rng):
     strokes = np.arange(1.0, 39.0, 0.7)
     zs = [stroke_sync(_strokes_at(strokes + 0.13 * k, 40.0), FPS, on, n_shifts=60)["z"] for k in range(3)]
     assert abs(np.mean(zs)) < 1.5, zs
-    # strokes placed halfway between onsets: well below chance
-    mid = (on[1:] + on[:-1]) / 2
-    far = mid[np.minimum(on[1:] - mid, mid - on[:-1]) > 0.11]
-    assert stroke_sync(_strokes_at(far[::2], 40.0), FPS, on, n_shifts=60)["z"] < -2.0
+    # strokes lagging the onsets by 0.1 s (no onset in the 0.2 s after them): well below chance
+    lag = on[:-1][np.diff(on) > 0.35] + 0.1
+    assert stroke_sync(_strokes_at(lag[::2], 40.0), FPS, on, n_shifts=60)["z"] < -2.0
 
 
 def test_stroke_sync_ignores_peaks_in_pauses(rng):
     on = np.arange(0.5, 20.0, 0.5)
     pause = [(5.0, 15.0)]
-    strokes = np.concatenate([on[on < 5], np.arange(5.2, 15, 0.5)[:10]])  # off-onset peaks only inside the pause
+    strokes = np.concatenate([on[on < 5] - 0.1, np.arange(5.2, 15, 0.5)[:10]])  # off-onset peaks only in the pause
     r = stroke_sync(_strokes_at(strokes, 20.0), FPS, on, silent_spans=pause, n_shifts=30)
     assert r["hit"] == pytest.approx(1.0)
     assert r["n_peaks"] == int((on < 5).sum())

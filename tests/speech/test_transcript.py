@@ -10,6 +10,7 @@ import pytest
 from robogest.errors import InputError
 from robogest.speech.transcript import (
     count_syllables,
+    read_stressed_vowels,
     read_transcript,
     spread_words,
     tokenize,
@@ -233,3 +234,18 @@ def test_validate_words_can_skip_bad_words_instead_of_raising():
     out = validate_words(ws, 2.0, "t", skip=skipped.append)
     assert [w.text for w in out] == ["a", "c"] and len(skipped) == 2
     assert "'b'" in skipped[0] and "beyond the audio" in skipped[1]
+
+
+def test_read_stressed_vowels_from_phones_tier(tmp_path: Path):
+    phones = [(0.0, 0.1, "HH"), (0.1, 0.3, "AY1"), (0.3, 0.4, "T"), (0.4, 0.5, "IH0"), (0.5, 0.7, "EH2")]
+    p = write_textgrid(tmp_path / "p.TextGrid", phones, 0.7, tier="phones")
+    assert read_stressed_vowels(p) == pytest.approx([0.1, 0.5])  # primary and secondary stress, not IH0
+
+
+def test_read_stressed_vowels_is_none_without_stress_marked_phones(tmp_path: Path):
+    words = write_textgrid(tmp_path / "w.TextGrid", [(0.0, 0.5, "hi")], 1.0)
+    ipa = write_textgrid(tmp_path / "i.TextGrid", [(0.0, 0.2, "h"), (0.2, 0.5, "aɪ")], 1.0, tier="phones")
+    txt = tmp_path / "t.txt"
+    txt.write_text("hi")
+    assert read_stressed_vowels(words) is None and read_stressed_vowels(ipa) is None
+    assert read_stressed_vowels(txt) is None
