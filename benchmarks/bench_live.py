@@ -112,11 +112,11 @@ def bench_session() -> None:
             underruns.append(s.planner.feed.underruns)
             plan_s += s.planner.plan_s
         rest, n0 = [], len(goals)
-        for _ in range(3):
+        for delay_s in (0.6, 0.9, 1.2, 1.5, 1.8, 2.1):
             h = robot.say(TEXT, wait=False)
             while h.event("started") is None:
                 time.sleep(0.01)
-            time.sleep(1.0)
+            time.sleep(delay_s)
             r = robot.interrupt()
             rest.append(r["at_rest_s"] - r["interrupt_s"])
         cfg = robot.config
@@ -138,8 +138,53 @@ def bench_session() -> None:
     row("streamed: first chunk -> audio start", audio_start, "(L = 0.15 s behind the audio as it arrives)")
     row("streamed: one feed() call (the caller's thread)", feed_s)
     row("streamed: one plan (the stream's thread)", plan_s)
-    row("interrupt() mid-utterance -> at rest", rest, f"target <= 500 ms; every goal within limits: {ok}")
+    row(f"interrupt() mid-utterance -> at rest (stop_within_s = {robot.stop_within_s})", rest,
+        f"target <= 500 ms; every goal within limits: {ok}")  # fmt: skip
     print(f"{'stream underruns (ticks holding for a late plan), late ticks':<58} {sum(underruns)} / {late}")
+
+
+def bench_interrupt(stop_within_s: float = 0.45) -> None:
+    """Interrupts at 26 instants of a paragraph (stepped simulation: loop time, no scheduling noise), with and
+    without the stop envelope: time to rest, its ratio to the time-optimal bound from the state interrupted, and
+    what the envelope costs the gestures (RMS distance of the goals from rest, same paragraph played whole)."""
+    from robogest.backends import get_backend_factory
+    from robogest.backends.control import ControlLoop
+    from robogest.generators import make_generator
+    from robogest.pipeline import motion_to_trajectory
+    from robogest.robot import find_robot
+    from robogest.speech import synthesize
+
+    cfg = find_robot("humanoid_xl430")
+    sp = synthesize(PARAGRAPH)
+    traj, _, _ = motion_to_trajectory(make_generator("rhythm").generate(sp, seed=0), cfg, silent_spans=sp.silent_spans)
+    rate = 100.0
+
+    def run(stop: float | None, at_s: float | None) -> tuple[float, float, np.ndarray]:
+        goals: list[np.ndarray] = []
+        loop = ControlLoop(get_backend_factory("sim")(cfg, record=False), rate, threaded=False, stop_within_s=stop,
+                           on_tick=lambda t, q: goals.append(q.copy()))  # fmt: skip
+        loop.start()
+        h = loop.play(traj)
+        if at_s is None:
+            h.wait()
+            loop.close()
+            return 0.0, 0.0, np.array(goals)
+        loop.run_for(at_s)
+        bound = loop.limiter.time_to_reach_s(loop.rest_q_rad)
+        n0 = loop.stats.n_ticks
+        loop.interrupt().wait()
+        took = (loop.stats.n_ticks - n0) / rate
+        loop.close()
+        return took, bound, np.array(goals)
+
+    instants = np.arange(0.5, 10.0, 0.37)
+    for stop in (None, stop_within_s):
+        took, bound = np.array([run(stop, float(t))[:2] for t in instants]).T
+        spread = np.sqrt(np.mean((run(stop, None)[2] - cfg.rest_q_rad) ** 2))
+        what = "no stop envelope" if stop is None else f"stop_within_s = {stop}"
+        row(f"interrupt -> at rest, loop time, 26 instants ({what})", list(took),
+            f"max {took.max() * 1000:.0f} ms; / time-optimal bound: max {np.max(took / bound):.3f}; "
+            f"goals' RMS distance from rest {spread:.3f} rad")  # fmt: skip
 
 
 def bench_sync(seeds: tuple[int, ...] = tuple(range(10))) -> None:
@@ -199,4 +244,5 @@ if __name__ == "__main__":
     bench_help()
     bench_serve_ready()
     bench_session()
+    bench_interrupt()
     bench_sync()

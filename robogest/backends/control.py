@@ -95,6 +95,13 @@ def _on_signal(signum: int, frame: Any) -> None:
     raise _SIG.fired
 
 
+def deliver_signal(signum: int) -> None:
+    """Act on ``signum`` now, in this thread, as :func:`signals_end_at_rest` would on its arrival (raise
+    :class:`Interrupted` once, ignore later ones): for an event loop that catches signals itself so that none is
+    raised inside one of its tasks."""
+    _on_signal(signum, None)
+
+
 def _raise_pending() -> None:
     if _SIG.pending is not None and _SIG.fired is None and not _SIG.critical:
         _SIG.fired = Interrupted(_SIG.pending)
@@ -245,6 +252,9 @@ class ControlLoop:
     lookahead_s : float
         Trajectories and idle motions are sampled this far ahead of the loop time, making up for the limiter's lag
         (:data:`~robogest.safety.online.LOOKAHEAD_S`).
+    stop_within_s : float, optional
+        Keep every goal within this many seconds of standing at rest (the limiter's stop envelope: gestures that
+        would go farther are cut short), so :meth:`interrupt` is at rest within it. None: no envelope.
     """
 
     def __init__(
@@ -258,6 +268,7 @@ class ControlLoop:
         time_scale: float = 1.0,
         margin_rad: float = 0.02,
         lookahead_s: float = LOOKAHEAD_S,
+        stop_within_s: float | None = None,
     ) -> None:
         if not (rate_hz > 0 and time_scale > 0):
             raise ValueError("rate_hz and time_scale must be positive")
@@ -271,6 +282,7 @@ class ControlLoop:
         self.time_scale = float(time_scale)
         self.margin_rad = margin_rad
         self.lookahead_s = float(lookahead_s)
+        self.stop_within_s = stop_within_s
         self.limiter: OnlineLimiter | None = None
         self.stats = LoopStats()
         self.rest_q_rad = np.clip(self.robot.rest_q_rad, self.robot.q_min_rad, self.robot.q_max_rad)
@@ -329,7 +341,9 @@ class ControlLoop:
         return self
 
     def _adopt(self, q_now: np.ndarray) -> None:
-        self.limiter = OnlineLimiter.for_robot(self.robot, self.period_s, q_now, margin_rad=self.margin_rad)
+        self.limiter = OnlineLimiter.for_robot(
+            self.robot, self.period_s, q_now, margin_rad=self.margin_rad, stop_within_s=self.stop_within_s
+        )
         self._hold = self.limiter.q_rad.copy()
         self._wall0 = time.monotonic()
         self._k = 0
@@ -616,6 +630,7 @@ __all__ = [
     "Interrupted",
     "LoopStats",
     "PlayHandle",
+    "deliver_signal",
     "go_to_rest",
     "signals_end_at_rest",
 ]

@@ -46,6 +46,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--generator", default="rhythm", help="generator for say messages (default: %(default)s)")
     p.add_argument("--checkpoint", metavar="FILE", help="trained weights for a learned generator")
     p.add_argument("--seed", type=int, default=0, help="random seed of the gesture choices")
+    p.add_argument(
+        "--stop-within", type=checks.number(0.1, 10.0, "s"), default=0.45, metavar="SECONDS",
+        help="keep the robot within SECONDS of standing at rest, so an interrupt is at rest within it; larger "
+        "gestures are cut short (default: %(default)s)",
+    )  # fmt: skip
+    p.add_argument(
+        "--full-gestures", action="store_true",
+        help="no stop envelope: gestures as large as the joint limits allow (an interrupt then takes as long as the "
+        "limits make it)",
+    )  # fmt: skip
     p.add_argument("--time-scale", type=float, default=1.0, help=argparse.SUPPRESS)  # tests: faster than real time
     p.set_defaults(func=run_serve)
 
@@ -60,6 +70,7 @@ def run_serve(args: argparse.Namespace) -> int:
     with Robot(
         args.robot, backend=args.backend, port=args.port, baudrate=args.baud, idle=not args.no_idle,
         generator=args.generator, generator_options=opts, seed=args.seed, time_scale=args.time_scale,
+        stop_within_s=None if args.full_gestures else args.stop_within,
     ) as robot:  # fmt: skip
         serve_forever(robot, host, port, token=args.token, allow_origins=args.allow_origin)
     return 0

@@ -30,6 +30,7 @@ import contextlib
 import hmac
 import ipaddress
 import json
+import signal
 import sys
 import threading
 from collections.abc import Sequence
@@ -97,18 +98,44 @@ class Server:
 
     # --- session --------------------------------------------------------------------------------------
     async def run(self, ready: Any = None) -> None:
-        """Serve until cancelled (or a signal ends the process); ``ready(host, port)`` once listening."""
+        """Serve until cancelled or SIGINT/SIGTERM/SIGHUP; ``ready(host, port)`` once listening.
+
+        The event loop takes those signals itself (a Python signal handler would raise inside whichever task
+        happens to run) and raises :class:`~robogest.backends.control.Interrupted` from here, so the session
+        ends at rest and the process exits with 128 + the signal number.
+        """
         from websockets.asyncio.server import serve
 
-        async with serve(
-            self._handle, self.host, self.port, origins=self.origins, process_request=self._check_token,
-            max_size=2**22,
-        ) as server:  # fmt: skip
-            sock = next(iter(server.sockets))
-            self.port = sock.getsockname()[1]
-            if ready is not None:
-                ready(self.host, self.port)
-            await asyncio.Future()  # forever
+        from robogest.backends.control import deliver_signal
+
+        loop = asyncio.get_running_loop()
+        stop: asyncio.Future = loop.create_future()
+        taken: dict[int, Any] = {}
+        for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+            sig = getattr(signal, name, None)
+            prev = signal.getsignal(sig) if sig is not None else None
+            if sig is None or (name == "SIGHUP" and prev == signal.SIG_IGN):
+                continue
+            try:
+                loop.add_signal_handler(sig, lambda s=sig: stop.done() or stop.set_result(s))
+            except (NotImplementedError, RuntimeError, ValueError):  # not the main thread, or no such support
+                continue
+            taken[sig] = prev
+        try:
+            async with serve(
+                self._handle, self.host, self.port, origins=self.origins, process_request=self._check_token,
+                max_size=2**22,
+            ) as server:  # fmt: skip
+                sock = next(iter(server.sockets))
+                self.port = sock.getsockname()[1]
+                if ready is not None:
+                    ready(self.host, self.port)
+                signum = await stop
+        finally:
+            for sig, prev in taken.items():  # the session's own handlers again: a second signal must not kill it
+                loop.remove_signal_handler(sig)
+                signal.signal(sig, prev)
+        deliver_signal(signum)
 
     async def _handle(self, ws: Any) -> None:
         conn = _Connection(self, ws)

@@ -205,6 +205,11 @@ class Robot:
         While the session is open, BLAS thread pools of the whole process are limited to this many threads (the
         planner's matrices are small; more threads only take cores from the control loop: 2.5x faster streaming
         measured on 2 cores). Restored on close; None leaves them alone.
+    stop_within_s : float or None
+        The robot is always within this many seconds of standing at rest (every limit kept), so :meth:`interrupt`
+        is at rest within it: the control loop's limiter cuts short any gesture that would take it farther (on
+        humanoid_xl430, 0.45 s allows about 0.65 rad from rest at the shoulders). None: gestures as large as the
+        joint limits allow, and an interrupt takes as long as the limits make it.
     approach_within_rad : float
         An utterance starting this close (every joint, radians) to the pose held starts at once, the limiter
         taking up the difference; farther away, the robot first glides to its first pose.
@@ -232,6 +237,7 @@ class Robot:
         backend_options: dict | None = None,
         warm_up: bool = True,
         blas_threads: int | None = 1,
+        stop_within_s: float | None = 0.45,
         approach_within_rad: float = 0.2,
     ) -> None:
         from robogest.robot.registry import find_robot
@@ -256,6 +262,7 @@ class Robot:
         self.backend_options = dict(backend_options or {})
         self.warm_up = warm_up
         self.blas_threads = blas_threads
+        self.stop_within_s = stop_within_s
         self.approach_within_rad = float(approach_within_rad)
         self._blas: Any = None
         self.loop: Any = None
@@ -305,7 +312,10 @@ class Robot:
                       "play times", file=sys.stderr)  # fmt: skip
         else:
             self.audio_note = "audio off" if self.time_scale == 1.0 else "time_scale is not 1"
-        self.loop = ControlLoop(be, self.rate_hz, threaded=True, time_scale=self.time_scale, on_tick=self.on_tick)
+        self.loop = ControlLoop(
+            be, self.rate_hz, threaded=True, time_scale=self.time_scale, on_tick=self.on_tick,
+            stop_within_s=self.stop_within_s,
+        )  # fmt: skip
         self._opened = True
         try:
             self.loop.start()

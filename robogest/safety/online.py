@@ -99,6 +99,7 @@ class OnlineLimiter:
         *,
         rest_q_rad: np.ndarray | None = None,
         margin_rad: float = 0.02,
+        stop_within_s: float | None = None,
     ) -> None:
         arrays = [np.array(a, dtype=float) for a in (q_min_rad, q_max_rad, v_max_rad_s, a_max_rad_s2, j_max_rad_s3)]
         n = arrays[0].size
@@ -118,22 +119,51 @@ class OnlineLimiter:
         lo, hi = np.where(lo > hi, mid, lo), np.where(lo > hi, mid, hi)
         if rest is not None:
             lo, hi = np.minimum(lo, rest), np.maximum(hi, rest)
-        self.band_lo_rad, self.band_hi_rad = lo, hi
         self._otg = ruckig.Ruckig(n)
         self._traj = ruckig.Trajectory(n)
         self._inp = self._input(ruckig.ControlInterface.Position)
         self._brake_inp = self._input(ruckig.ControlInterface.Velocity)
+        self._rest_inp = self._input(ruckig.ControlInterface.Position)
+        self.stop_within_s = None if stop_within_s is None else float(stop_within_s)
+        if self.stop_within_s is not None:
+            if rest is None or not (np.isfinite(self.stop_within_s) and self.stop_within_s > 2 * self.period_s):
+                raise InputError(
+                    f"OnlineLimiter: stop_within_s {stop_within_s} needs a rest pose and more than two periods"
+                )
+            reach = self.reach_rad(self.stop_within_s) * 0.98
+            lo, hi = np.maximum(lo, np.minimum(rest, rest - reach)), np.minimum(hi, np.maximum(rest, rest + reach))
+        self.band_lo_rad, self.band_hi_rad = lo, hi
         self.fallbacks = 0  #: ticks where a brake could not be computed and the last goal was held
         self.brakes = 0  #: ticks where a joint's candidate was refused by the braking check and that joint braked
+        self.envelope_ticks = 0  #: ticks where a joint turned towards rest to stay within stop_within_s of it
         self.reset(q0_rad)
 
     @classmethod
-    def for_robot(cls, robot, period_s: float, q0_rad: np.ndarray, *, margin_rad: float = 0.02) -> OnlineLimiter:
+    def for_robot(
+        cls, robot, period_s: float, q0_rad: np.ndarray, *, margin_rad: float = 0.02, stop_within_s: float | None = None
+    ) -> OnlineLimiter:
         """The limiter for a :class:`~robogest.robot.config.RobotConfig` (its limits, jerk limits and rest)."""
         return cls(
             robot.q_min_rad, robot.q_max_rad, robot.v_max_rad_s, robot.a_max_rad_s2, robot.j_max_rad_s3,
-            period_s, q0_rad, rest_q_rad=robot.rest_q_rad, margin_rad=margin_rad,
+            period_s, q0_rad, rest_q_rad=robot.rest_q_rad, margin_rad=margin_rad, stop_within_s=stop_within_s,
         )  # fmt: skip
+
+    def reach_rad(self, t_s: float) -> np.ndarray:
+        """Per joint ``(J,)`` radians: the farthest a joint can get from a standstill and be still again within
+        ``t_s`` seconds (bisection on ruckig's time-optimal durations)."""
+        lo, hi = np.zeros(self.n_joints), self.q_max_rad - self.q_min_rad
+        inp = self._input(ruckig.ControlInterface.Position)
+        inp.current_position = [0.0] * self.n_joints
+        inp.current_velocity = [0.0] * self.n_joints
+        inp.current_acceleration = [0.0] * self.n_joints
+        traj = ruckig.Trajectory(self.n_joints)
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            inp.target_position = mid.tolist()
+            self._otg.calculate(inp, traj)
+            fits = np.asarray(traj.independent_min_durations) <= t_s
+            lo, hi = np.where(fits, mid, lo), np.where(fits, hi, mid)
+        return lo
 
     def _input(self, interface: ruckig.ControlInterface) -> ruckig.InputParameter:
         inp = ruckig.InputParameter(self.n_joints)
@@ -164,7 +194,8 @@ class OnlineLimiter:
         return self.state.q_rad
 
     def clamp_target(self, q_rad: np.ndarray) -> np.ndarray:
-        """``q_rad`` ``(J,)`` clamped into the target band ``[q_min + margin, q_max − margin]`` ∪ rest."""
+        """``q_rad`` ``(J,)`` clamped into the target band ``[q_min + margin, q_max − margin]`` ∪ rest (and, with
+        ``stop_within_s``, to the poses from which rest can be reached in that time)."""
         return np.clip(np.asarray(q_rad, dtype=float), self.band_lo_rad, self.band_hi_rad)
 
     @property
@@ -175,6 +206,20 @@ class OnlineLimiter:
     def settled(self, tol_rad: float = 1e-6) -> bool:
         """True when the state sits still on the last target (within ``tol_rad``)."""
         return self.still and bool(np.max(np.abs(self.state.q_rad - self._target)) <= tol_rad)
+
+    def time_to_reach_s(self, target_q_rad: np.ndarray) -> float:
+        """Shortest time, seconds, from the present state to standing still on ``target_q_rad`` ``(J,)`` within every
+        limit: the time-optimal bound (each joint on its own, the slowest counts) that no follower can beat, e.g.
+        for judging how fast an interrupt reaches rest."""
+        s = self.state
+        inp = self._input(ruckig.ControlInterface.Position)
+        inp.current_position, inp.current_velocity = s.q_rad.tolist(), s.v_rad_s.tolist()
+        inp.current_acceleration = s.a_rad_s2.tolist()
+        inp.target_position = self.clamp_target(np.asarray(target_q_rad, dtype=float)).tolist()
+        traj = ruckig.Trajectory(self.n_joints)
+        if self._otg.calculate(inp, traj) not in _OK:
+            raise InputError("OnlineLimiter: ruckig found no motion to the target from the present state")
+        return float(traj.duration)
 
     # --- one tick ----------------------------------------------------------------------------------
     def propose(self, target_q_rad: np.ndarray, target_v_rad_s: np.ndarray | None = None) -> np.ndarray:
@@ -197,6 +242,8 @@ class OnlineLimiter:
                 tv = VELOCITY_FEEDFORWARD * np.where(goal == tq, np.clip(tv, -cap, cap), 0.0)  # clamped: still
             self._target = goal
             cand = self._follow(s, goal, tv)
+            if cand is not None and self.stop_within_s is not None:
+                cand = self._keep_rest_within_reach(s, cand)
         ok = self._stops_inside(cand) if cand is not None else np.zeros(self.n_joints, dtype=bool)
         if not ok.all():  # joints are independent: only those that could not stop inside brake
             brake = self._brake(s)
@@ -258,6 +305,34 @@ class OnlineLimiter:
         out = MotionState(np.array(q), np.array(v), np.array(a))
         finite = all(np.all(np.isfinite(x)) for x in (out.q_rad, out.v_rad_s, out.a_rad_s2))
         return out if finite else None
+
+    def _rest_time_s(self, s: MotionState) -> np.ndarray | None:
+        """Per joint ``(J,)``: shortest time from ``s`` to standing still at rest, seconds (None if not computable)."""
+        inp = self._rest_inp
+        inp.current_position, inp.current_velocity, inp.current_acceleration = _lists(s)
+        inp.target_position = self.rest_q_rad.tolist()
+        try:
+            res = self._otg.calculate(inp, self._traj)
+        except (RuntimeError, ValueError):
+            return None
+        return np.asarray(self._traj.independent_min_durations) if res in _OK else None
+
+    def _keep_rest_within_reach(self, s: MotionState, cand: MotionState) -> MotionState:
+        """Joints whose candidate could not be at rest within ``stop_within_s`` take the time-optimal step towards
+        rest instead. From a state within reach that step stays within reach (the rest of a time-optimal motion
+        is time-optimal), so an interrupt is at rest within ``stop_within_s`` from every goal (induction)."""
+        t = self._rest_time_s(cand)
+        far = np.ones(self.n_joints, bool) if t is None else t > self.stop_within_s + 1e-9
+        if not far.any():
+            return cand
+        home = self._follow(s, self.rest_q_rad, np.zeros(self.n_joints))
+        if home is None:
+            return cand  # the braking check that follows still keeps the limits
+        self.envelope_ticks += 1
+        return MotionState(
+            np.where(far, home.q_rad, cand.q_rad), np.where(far, home.v_rad_s, cand.v_rad_s),
+            np.where(far, home.a_rad_s2, cand.a_rad_s2),
+        )  # fmt: skip
 
     def _stops_inside(self, s: MotionState) -> np.ndarray:
         """Per joint ``(J,)`` bool: does braking from ``s`` as hard as the limits allow stay within the limits?"""

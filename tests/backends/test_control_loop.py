@@ -18,9 +18,10 @@ from hypothesis import strategies as st
 from robogest.backends.base import Backend
 from robogest.backends.control import ControlLoop, go_to_rest
 from robogest.backends.player import play
-from robogest.errors import BackendError
+from robogest.errors import BackendError, InputError
 from robogest.robot.config import RobotConfig
 from robogest.safety import JointLimits, apply_safety
+from robogest.safety.online import OnlineLimiter
 from robogest.trajectory.types import Trajectory
 
 REL = 1e-9
@@ -407,3 +408,37 @@ def test_jerk_limits_come_from_the_yaml_or_the_default_rule(tmp_path):
     (tmp_path / "x.yaml").write_text(yaml.safe_dump(doc))
     with pytest.raises(ConfigError, match=r"joints\[0\]\.max_jerk_rad_s3"):
         load_robot_config(tmp_path / "x.yaml")
+
+
+# --- the stop envelope -------------------------------------------------------------------------------
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(cases(), st.floats(0.2, 1.0), st.floats(0.0, 1.0))
+def test_with_a_stop_envelope_an_interrupt_at_any_moment_is_at_rest_in_time(case, stop_s, when):
+    """``stop_within_s``: an interrupt at any moment is at rest within it (plus the tick that takes it), and every
+    other limit still holds. (Not asserted per tick: ruckig's duration from a state at the velocity limit with
+    acceleration left over is sometimes a slower profile's, for that one tick.)"""
+    robot, rate = case["robot"], case["rate"]
+    b = Recorder(robot)
+    loop = ControlLoop(b, rate, threaded=False, stop_within_s=stop_s)
+    loop.start()
+    loop.play(case["traj"])
+    loop.run_for(when * case["traj"].duration_s)
+    n0 = loop.stats.n_ticks
+    rest = loop.interrupt()
+    rest.wait()
+    took_s = (loop.stats.n_ticks - n0) / rate
+    loop.close()
+    check_limits(np.array(b.sent), robot, 1.0 / rate)
+    assert took_s <= stop_s + 1.0 / rate + 1e-9
+
+
+def test_the_stop_envelope_cuts_gestures_short_only_beyond_its_reach():
+    robot = small_robot()
+    lim = OnlineLimiter.for_robot(robot, 0.01, robot.rest_q_rad, stop_within_s=0.3)
+    reach = lim.reach_rad(0.3)
+    assert np.all(reach > 0) and np.all(lim.reach_rad(0.6) > reach)  # farther with more time
+    near, far = robot.rest_q_rad + 0.5 * reach, robot.rest_q_rad + 3 * reach
+    np.testing.assert_allclose(lim.clamp_target(near), np.clip(near, lim.band_lo_rad, lim.band_hi_rad))
+    assert np.all(np.abs(lim.clamp_target(far) - robot.rest_q_rad) <= reach)
+    with pytest.raises(InputError, match="stop_within_s"):
+        OnlineLimiter.for_robot(robot, 0.01, robot.rest_q_rad, stop_within_s=0.015)
