@@ -57,7 +57,9 @@ def test_fixture_motion_follows_audio_energy(tmp_path):
 def test_feature_cache_is_used_and_invalidated(tmp_path, monkeypatch):
     root = make_fixture_dataset(tmp_path / "d", n_takes=1, duration_s=4.0)
     first = load_dataset(root, CFG, cache_dir=tmp_path / "c")
-    assert len(list((tmp_path / "c").glob("*.npz"))) == 1
+    (entry,) = (tmp_path / "c").iterdir()  # one folder per take, nothing left half-written beside it
+    assert sorted(p.name for p in entry.iterdir()) == ["acoustic.npy", "meta.json", "poses.npy", "text.npy"]
+    assert isinstance(first[0].poses, np.memmap) and not first[0].poses.flags.writeable  # mapped read-only
 
     def boom(*a, **k):
         raise AssertionError("recomputed although cached")
@@ -65,6 +67,17 @@ def test_feature_cache_is_used_and_invalidated(tmp_path, monkeypatch):
     monkeypatch.setattr(ds, "compute_take", boom)
     again = load_dataset(root, CFG, cache_dir=tmp_path / "c")
     np.testing.assert_array_equal(first[0].poses, again[0].poses)
+    (entry / "text.npy").unlink()  # a new file: writing into a mapped one would change `first`'s arrays
+    (entry / "text.npy").write_bytes(b"garbage")  # an unreadable entry is recomputed, not fatal
+    with pytest.raises(AssertionError, match="recomputed"):
+        load_dataset(root, CFG, cache_dir=tmp_path / "c")
+    monkeypatch.undo()
+    again = load_dataset(root, CFG, cache_dir=tmp_path / "c")
+    np.testing.assert_array_equal(first[0].text, again[0].text)
+    monkeypatch.setattr(ds, "compute_take", boom)
+    with pytest.raises(InputError, match="not in the feature cache"):  # a DDP rank that only maps
+        load_dataset(root, FeatureConfig(text_encoder="hash-test", text_encoder_kwargs={"dim": 4}), tmp_path / "c",
+                     build=False)  # fmt: skip
     with pytest.raises(AssertionError, match="recomputed"):  # another feature config is another key
         load_dataset(root, FeatureConfig(text_encoder="hash-test", text_encoder_kwargs={"dim": 4}), tmp_path / "c")
     wav = root / "take_000.wav"
