@@ -98,5 +98,6 @@ def run(args: argparse.Namespace) -> int:
         model_overrides=parse_options(args.options),
     )
     best = train(cfg, get_model_spec(args.model))
-    print(f"best checkpoint: {best}")
+    if os.environ.get("RANK", "0") == "0":  # one line for a torchrun job
+        print(f"best checkpoint: {best}")
     return 0

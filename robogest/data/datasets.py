@@ -10,18 +10,22 @@ Plain folder of pairs
     ``NAME.wav`` + ``NAME.bvh`` or ``NAME.npz`` + optional ``NAME.TextGrid`` / ``NAME.json`` / ``NAME.txt``.
 
 Each take is the speech features and the motion resampled to the feature rate, both aligned at t = 0 and trimmed
-to the shorter. Features are cached as ``.npz`` keyed by the input files (path, size, mtime) and the
-:class:`~robogest.data.features.FeatureConfig`, so a second run reads them instead of recomputing.
+to the shorter. Features are cached as one folder of ``.npy`` files per take, keyed by the input files (path, size,
+mtime) and the :class:`~robogest.data.features.FeatureConfig`, so a second run reads them instead of recomputing;
+they are memory-mapped read-only from there, so memory does not grow with the dataset and processes share them.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
 import math
 import os
 import re
+import shutil
 import sys
+import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,7 +34,6 @@ import numpy as np
 
 from robogest.data.features import FeatureConfig, motion_to_expmap, speech_inputs, text_encoder_for
 from robogest.errors import InputError
-from robogest.fileio import atomic_path
 
 _AUDIO_EXT = (".wav", ".flac", ".ogg", ".mp3")
 _MOTION_EXT = (".bvh", ".npz")
@@ -55,7 +58,7 @@ class Take:
     ----------
     name : str
     acoustic : ndarray [shape=(T, 69)], float32
-        Log-mel dB (64) + Table 1 word timing features (5).
+        Log-mel dB (64) + Table 1 word timing features (5); a read-only ``np.memmap`` when loaded from the cache.
     text : ndarray [shape=(T, D)], float32
         Per-frame text features.
     poses : ndarray [shape=(T, J * 3)], float32, radians
@@ -215,9 +218,49 @@ def cache_key(files: TakeFiles, config: FeatureConfig) -> str:
     return h.hexdigest()[:24]
 
 
-def _atomic_savez(path: Path, **arrays: np.ndarray) -> None:
-    with atomic_path(path, ".npz") as tmp:
-        np.savez(tmp, **arrays)
+#: Arrays of one take in its cache entry, one ``.npy`` each (memory-mapped when read).
+_CACHED_ARRAYS = ("acoustic", "text", "poses")
+
+
+def cache_entry(files: TakeFiles, config: FeatureConfig, cache_dir: str | os.PathLike | None = None) -> Path:
+    """Folder of ``files``' cached features: ``acoustic.npy``, ``text.npy``, ``poses.npy`` and ``meta.json``."""
+    cdir = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    return cdir / f"{files.name}-{cache_key(files, config)}"
+
+
+def _write_entry(entry: Path, take: Take) -> None:
+    """Write a take's arrays into a temporary folder beside ``entry`` and rename it into place (atomic: a reader
+    sees a complete entry or none; when another process got there first its identical entry is kept)."""
+    entry.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{entry.name}.", dir=entry.parent))
+    try:
+        for k in _CACHED_ARRAYS:
+            np.save(tmp / f"{k}.npy", np.ascontiguousarray(getattr(take, k), np.float32))
+        (tmp / "meta.json").write_text(json.dumps({"fps": take.fps}), encoding="utf-8")
+        tmp.chmod(0o755)
+        shutil.rmtree(entry, ignore_errors=True)  # an unreadable entry being replaced
+        try:
+            os.replace(tmp, entry)
+        except OSError:
+            if not entry.is_dir():  # not a concurrent writer's complete entry: a real failure
+                raise
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _read_entry(entry: Path, name: str, audio: Path | None) -> Take:
+    """A cached take with its arrays memory-mapped read-only (pages shared by every process that maps them).
+
+    Raises
+    ------
+    OSError, KeyError, ValueError
+        Missing or inconsistent entry.
+    """
+    fps = float(json.loads((entry / "meta.json").read_text(encoding="utf-8"))["fps"])
+    a, t, p = (np.load(entry / f"{k}.npy", mmap_mode="r", allow_pickle=False) for k in _CACHED_ARRAYS)
+    if not (a.ndim == t.ndim == p.ndim == 2 and a.shape[0] == t.shape[0] == p.shape[0]):
+        raise ValueError(f"{entry}: arrays of different lengths")
+    return Take(name, a, t, p, fps, audio)
 
 
 def compute_take(
@@ -252,19 +295,24 @@ def load_take(
     cache_dir: str | os.PathLike | None = None,
     encoder=None,
     warn: Callable[[str], None] | None = None,
-) -> Take:
-    """One take, from the feature cache when it is there (``cache_dir=None``: :func:`default_cache_dir`)."""
-    cdir = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    path = cdir / f"{files.name}-{cache_key(files, config)}.npz"
-    if path.is_file():
+    build: bool = True,
+) -> Take | None:
+    """One take, its arrays memory-mapped from the feature cache (``cache_dir=None``: :func:`default_cache_dir`).
+
+    A take not in the cache is computed and written first (``build=False``: None is returned instead, for DDP
+    ranks that only map what the builder rank wrote). Memory-mapped, a dataset's features take no memory beyond
+    the pages being read, and processes reading the same entry share those pages.
+    """
+    entry = cache_entry(files, config, cache_dir)
+    if entry.is_dir():
         try:
-            with np.load(path, allow_pickle=False) as z:
-                return Take(files.name, z["acoustic"], z["text"], z["poses"], float(z["fps"]), files.audio)
+            return _read_entry(entry, files.name, files.audio)
         except (OSError, KeyError, ValueError):
             pass  # unreadable cache entry: recompute and overwrite
-    take = compute_take(files, config, encoder, warn)
-    _atomic_savez(path, acoustic=take.acoustic, text=take.text, poses=take.poses, fps=np.float64(take.fps))
-    return take
+    if not build:
+        return None
+    _write_entry(entry, compute_take(files, config, encoder, warn))
+    return _read_entry(entry, files.name, files.audio)
 
 
 def load_dataset(
@@ -273,12 +321,14 @@ def load_dataset(
     cache_dir: str | os.PathLike | None = None,
     progress: Callable[[int, int], None] | None = None,
     warn: Callable[[str], None] | None = None,
+    build: bool = True,
 ) -> list[Take]:
-    """Every take of ``root``, aligned and cached.
+    """Every take of ``root``, aligned, cached on disk and memory-mapped from there (:func:`load_take`).
 
     A take that cannot be read (unreadable file, a transcript that cannot be parsed) is left out with one ``warn``
     line (default: ``warning: ...`` on stderr), so one bad recording never stops a run. With BEAT2's official split
-    (:data:`SPLIT_FILE`) the test takes are not loaded.
+    (:data:`SPLIT_FILE`) the test takes are not loaded. ``build=False`` computes nothing: takes missing from the
+    cache are left out silently (under DDP the builder rank has computed, or warned about, every take).
 
     Raises
     ------
@@ -299,14 +349,18 @@ def load_dataset(
     for i, f in enumerate(files):
         if progress is not None:
             progress(i, len(files))
-        cdir = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-        if encoder is None and not (cdir / f"{f.name}-{cache_key(f, config)}.npz").is_file():
+        if build and encoder is None and not cache_entry(f, config, cache_dir).is_dir():
             encoder = text_encoder_for(config)  # only load (seconds for MiniLM) when something is not cached
         try:
-            takes.append(load_take(f, config, cache_dir, encoder, say))
+            take = load_take(f, config, cache_dir, encoder, say, build)
         except InputError as e:
             failed.append(str(e))
             say(f"{f.name}: take skipped ({e})")
+            continue
+        if take is not None:
+            takes.append(take)
+        else:
+            failed.append(f"{f.name}: not in the feature cache")
     if progress is not None:
         progress(len(files), len(files))
     if not takes:

@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import hashlib
+import json
+import os
+import shutil
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -51,6 +55,43 @@ def split_takes(
     return train, val
 
 
+def moments(chunks: Iterable[np.ndarray], min_std: float = MIN_STD) -> tuple[np.ndarray, np.ndarray]:
+    """Per-column mean and standard deviation of the rows of all ``chunks`` together, one chunk in memory at a time
+    (Chan et al.'s pairwise update in float64), so a dataset's statistics need no copy of the dataset.
+
+    Parameters
+    ----------
+    chunks : iterable of ndarray [shape=(T_i, d)]
+        E.g. each take's (memory-mapped) features.
+    min_std : float
+        A standard deviation below this is returned as 1 (a constant column is divided by 1, not by ~0).
+
+    Returns
+    -------
+    mean : ndarray [shape=(d,)], float64
+    std : ndarray [shape=(d,)], float32
+        Population standard deviation (``ddof=0``, as ``np.std``).
+    """
+    n, mean, m2 = 0, None, None
+    for c in chunks:
+        x = np.asarray(c, np.float64)  # (T_i, d)
+        if x.shape[0] == 0:
+            continue
+        nb, mb = x.shape[0], x.mean(axis=0)
+        m2b = ((x - mb) ** 2).sum(axis=0)
+        if mean is None:
+            n, mean, m2 = nb, mb, m2b
+            continue
+        delta, tot = mb - mean, n + nb
+        mean = mean + delta * (nb / tot)
+        m2 = m2 + m2b + delta**2 * (n * nb / tot)
+        n = tot
+    if mean is None:
+        raise InputError("no frames to compute statistics from")
+    std = np.sqrt(m2 / n)
+    return mean, np.where(std < min_std, 1.0, std).astype(np.float32)
+
+
 @dataclass(frozen=True)
 class Normalization:
     """Per-dimension mean/std of the acoustic inputs and of the poses, from the training takes.
@@ -70,14 +111,10 @@ class Normalization:
 
     @classmethod
     def fit(cls, takes: Sequence[Take]) -> Normalization:
-        a = np.concatenate([t.acoustic for t in takes]).astype(np.float64)  # (sum T, 69)
-        p = np.concatenate([t.poses for t in takes]).astype(np.float64)  # (sum T, J * 3)
-
-        def std(x: np.ndarray) -> np.ndarray:
-            s = x.std(axis=0)
-            return np.where(s < MIN_STD, 1.0, s).astype(np.float32)
-
-        return cls(a.mean(axis=0).astype(np.float32), std(a), p.mean(axis=0).astype(np.float32), std(p))
+        """Statistics of all frames of ``takes``, one take in memory at a time (:func:`moments`)."""
+        a_mean, a_std = moments(t.acoustic for t in takes)
+        p_mean, p_std = moments(t.poses for t in takes)
+        return cls(a_mean.astype(np.float32), a_std, p_mean.astype(np.float32), p_std)
 
     def acoustic(self, x: np.ndarray) -> np.ndarray:
         return ((x - self.acoustic_mean) / self.acoustic_std).astype(np.float32)
@@ -97,9 +134,10 @@ class Normalization:
 
 
 def make_windows(
-    takes: Sequence[Take], norm: Normalization, length: int, stride: int
+    takes: Sequence[Take], norm: Normalization, length: int, stride: int, store: str | os.PathLike | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Cut normalised takes into overlapping windows of ``length`` frames (read lazily, :func:`slice_windows`).
+    """Cut normalised takes into overlapping windows of ``length`` frames (read lazily, :func:`slice_windows`;
+    ``store`` as there).
 
     Returns
     -------
@@ -117,7 +155,7 @@ def make_windows(
     )
     d_in = takes[0].acoustic.shape[1] + takes[0].text.shape[1] if takes else 0
     d_out = takes[0].poses.shape[1] if takes else 0
-    return slice_windows(per_take, length, stride, d_in, d_out)
+    return slice_windows(per_take, length, stride, d_in, d_out, store=store)
 
 
 class LazyWindows:
@@ -168,14 +206,14 @@ class LazyWindows:
 
 
 class _Spill:
-    """Frame arrays ``(T_i, d)`` appended to an anonymous temporary file and mapped back read-only ``(sum T_i, d)``
-    (the file disappears with the mapping)."""
+    """Frame arrays ``(T_i, d)`` appended to a file and mapped back read-only ``(sum T_i, d)``: an anonymous
+    temporary file (gone with the mapping), or ``path`` when other processes map the same frames."""
 
-    def __init__(self, d: int) -> None:
+    def __init__(self, d: int, path: Path | None = None) -> None:
         import tempfile
 
         self.d, self.n = d, 0
-        self.file = tempfile.TemporaryFile()  # noqa: SIM115  (lives as long as the memory map)
+        self.file = tempfile.TemporaryFile() if path is None else open(path, "wb")  # noqa: SIM115  (lives on)
 
     def append(self, x: np.ndarray) -> None:
         self.file.write(np.ascontiguousarray(x, np.float32).tobytes())
@@ -188,22 +226,31 @@ class _Spill:
             return np.zeros((0, self.d), np.float32)
         return np.memmap(self.file, dtype=np.float32, mode="r", shape=(self.n, self.d))
 
+    def close(self) -> None:
+        self.file.close()
+
 
 def slice_windows(
     per_take: Iterable[tuple], length: int, stride: int, d_in: int, d_out: int,
     x_shape: tuple[int, ...] | None = None, y_shape: tuple[int, ...] | None = None,
+    store: str | os.PathLike | None = None,
 ) -> tuple[LazyWindows, LazyWindows, np.ndarray]:  # fmt: skip
     """Overlapping windows of ``length`` frames every ``stride`` frames from per-take model arrays, held on disk.
 
-    The takes' frames stream to memory-mapped temporary files one take at a time (:class:`LazyWindows`), so only
-    one take's arrays are in memory at once, whatever the dataset's size.
+    The takes' frames stream to memory-mapped files one take at a time (:class:`LazyWindows`), so only one take's
+    arrays are in memory at once, whatever the dataset's size.
 
     Parameters
     ----------
     per_take : iterable of (take index, x [shape=(T, d_in)], y [shape=(T, d_out)][, stride])
         Takes shorter than ``length`` give no window; an optional fourth item overrides ``stride`` for that take.
+        Consumed lazily: not at all when ``store`` already holds the windows.
     x_shape, y_shape : tuple of int, optional
         Shape of one window as returned (default ``(length, d_in)`` / ``(length, d_out)``).
+    store : path-like, optional
+        Folder for the frame files, so several processes (DDP ranks) map one copy: when it exists its windows are
+        mapped and ``per_take`` is not read; otherwise they are written there (complete or not at all). Default:
+        anonymous temporary files private to this process.
 
     Returns
     -------
@@ -213,23 +260,63 @@ def slice_windows(
     """
     if stride < 1 or length < 1:
         raise InputError("window length and stride must be >= 1")
-    starts, idx = [], []
-    fx, fy = _Spill(d_in), _Spill(d_out)
-    for item in per_take:
-        i, x, y = item[:3]
-        step = int(item[3]) if len(item) > 3 else stride
-        if step < 1:
-            raise InputError("window stride must be >= 1")
-        for s in range(0, x.shape[0] - length + 1, step):
-            starts.append(fx.n + s)
-            idx.append(i)
-        fx.append(x)
-        fy.append(y)
     xshape = x_shape or (length, d_in)
     yshape = y_shape or (length, d_out)
-    s = np.asarray(starts, np.int64)
+    if store is not None and Path(store).is_dir():
+        return _open_store(Path(store), length, d_in, d_out, xshape, yshape)
+    tmp = None
+    if store is not None:
+        import tempfile
+
+        Path(store).parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{Path(store).name}.", dir=Path(store).parent))
+    try:
+        starts, idx = [], []
+        fx, fy = _Spill(d_in, tmp and tmp / "x.f32"), _Spill(d_out, tmp and tmp / "y.f32")
+        for item in per_take:
+            i, x, y = item[:3]
+            step = int(item[3]) if len(item) > 3 else stride
+            if step < 1:
+                raise InputError("window stride must be >= 1")
+            for s in range(0, x.shape[0] - length + 1, step):
+                starts.append(fx.n + s)
+                idx.append(i)
+            fx.append(x)
+            fy.append(y)
+        s = np.asarray(starts, np.int64)
+        if tmp is not None:
+            fx.close()
+            fy.close()
+            np.save(tmp / "starts.npy", s)
+            np.save(tmp / "take_index.npy", np.asarray(idx, np.int64))
+            (tmp / "meta.json").write_text(json.dumps({"frames": fx.n, "length": length, "d": [d_in, d_out]}))
+            os.replace(tmp, store)  # complete, or (on any error above) absent
+            return _open_store(Path(store), length, d_in, d_out, xshape, yshape)
+    finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
     return (
         LazyWindows(fx.mapped(), s, length, xshape),
         LazyWindows(fy.mapped(), s, length, yshape),
         np.asarray(idx, int),
+    )
+
+
+def _open_store(
+    store: Path, length: int, d_in: int, d_out: int, xshape: tuple[int, ...], yshape: tuple[int, ...]
+) -> tuple[LazyWindows, LazyWindows, np.ndarray]:
+    """Map the windows :func:`slice_windows` wrote into ``store``."""
+    meta = json.loads((store / "meta.json").read_text())
+    if meta["length"] != length or meta["d"] != [d_in, d_out]:
+        raise InputError(f"{store}: windows of another shape ({meta}); remove the folder")
+    n = int(meta["frames"])
+
+    def frames(name: str, d: int) -> np.ndarray:
+        return np.memmap(store / name, np.float32, "r", shape=(n, d)) if n else np.zeros((0, d), np.float32)
+
+    s = np.load(store / "starts.npy", mmap_mode="r")
+    return (
+        LazyWindows(frames("x.f32", d_in), s, length, xshape),
+        LazyWindows(frames("y.f32", d_out), s, length, yshape),
+        np.load(store / "take_index.npy"),
     )

@@ -57,6 +57,25 @@ def setup(device_pref: str = "auto"):  # -> tuple[DistInfo, torch.device]
     return DistInfo(rank, world, local, True), device
 
 
+def barrier(info: DistInfo) -> None:
+    """Wait until every rank gets here (no-op when not distributed)."""
+    if info.enabled and info.world_size > 1:
+        import torch.distributed as dist
+
+        dist.barrier()
+
+
+def builder_first(info: DistInfo, build, read):
+    """``build()`` on each node's first process (``LOCAL_RANK`` 0), then ``read()`` on the others once it is done.
+
+    For data written once to local disk and memory-mapped by every rank (feature cache, training windows): the
+    other ranks neither compute nor hold a copy of their own. Returns what this process's call returned.
+    """
+    result = build() if info.local_rank == 0 else None
+    barrier(info)
+    return result if info.local_rank == 0 else read()
+
+
 def all_reduce_mean(values: list[float], info: DistInfo, device) -> list[float]:
     """Mean of ``values`` over all ranks (identity when not distributed)."""
     if not info.enabled or info.world_size == 1:

@@ -58,9 +58,10 @@ class ModelSpec(Protocol):
 #: ``fit_config(config, train_takes) -> config``
 #:     Fill data-dependent config fields (speaker table, feature statistics) from the training takes; called once
 #:     on a fresh run (a resumed run restores the config from the checkpoint).
-#: ``make_windows(takes, norm, config, length, stride) -> (x, y, take_index)``
+#: ``make_windows(takes, norm, config, length, stride, store=None) -> (x, y, take_index)``
 #:     The spec's own training arrays ``(N, L, F)``, ``(N, L, P)``, ``(N,)`` instead of
-#:     :func:`robogest.data.prep.make_windows` (other inputs or targets than normalised mel+text / exp-maps).
+#:     :func:`robogest.data.prep.make_windows` (other inputs or targets than normalised mel+text / exp-maps);
+#:     ``store`` goes to :func:`robogest.data.prep.slice_windows`, so DDP ranks map one copy.
 #: ``make_optimizers(model, train_config, config) -> dict[str, Optimizer]``
 #:     Several optimisers (e.g. generator and discriminator); all are saved in and restored from checkpoints.
 #: ``train_step(model, optimizers, speech, poses, epoch, config) -> dict[str, float]``
@@ -72,13 +73,16 @@ class ModelSpec(Protocol):
 #: ``validation_loss(model, speech, poses, epoch, config) -> Tensor``
 #:     The held-out loss ``best.pt`` is chosen on, instead of :meth:`ModelSpec.loss`: an autoregressive model's
 #:     free-running rollout (its own outputs fed back, as at run time), not a teacher-forced one.
+#: ``validation_length(config) -> int``
+#:     Frames per held-out sequence (default :meth:`ModelSpec.sequence_length`), e.g. several chained windows for
+#:     a rollout that feeds its own outputs across windows.
 #: ``first_best_epoch(config) -> int``
 #:     Epochs before this one (0-based) never become ``best.pt`` (e.g. before every stage has trained).
 #: ``stage_name(epoch, config) -> str``
 #:     What the epoch trains, for the log line and ``history.json``.
 OPTIONAL_SPEC_METHODS = (
     "fit_config", "make_windows", "make_optimizers", "train_step", "plan_epochs", "validation_loss",
-    "first_best_epoch", "stage_name",
+    "validation_length", "first_best_epoch", "stage_name",
 )  # fmt: skip
 
 
@@ -221,7 +225,11 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
     seed_everything(cfg.seed)
     fcfg = FeatureConfig(text_encoder=cfg.text_encoder, text_encoder_kwargs=dict(cfg.text_encoder_kwargs))
     t0 = time.perf_counter()
-    takes = load_dataset(cfg.data, fcfg, cfg.cache_dir)
+    takes = D.builder_first(
+        info,
+        lambda: load_dataset(cfg.data, fcfg, cfg.cache_dir),
+        lambda: load_dataset(cfg.data, fcfg, cfg.cache_dir, warn=lambda s: None, build=False),
+    )  # memory-mapped from the cache: one copy in the page cache whatever the number of ranks
     minutes = sum(t.n_frames for t in takes) / fcfg.fps / 60
     say(f"{len(takes)} takes, {minutes:.1f} min of speech (features in {time.perf_counter() - t0:.1f} s)")
     train_takes, val_takes = split_takes(takes, cfg.val_fraction, cfg.seed, official_split(cfg.data))
@@ -242,15 +250,13 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         if hasattr(spec, "plan_epochs"):
             mcfg = spec.plan_epochs(mcfg, cfg.epochs)
     seq = spec.sequence_length(mcfg)
-    if hasattr(spec, "make_windows"):
-        xs, ys, _ = spec.make_windows(train_takes, norm, mcfg, seq, cfg.window_stride)  # (N, L, F), (N, L, P)
-        vx, vy, _ = spec.make_windows(val_takes, norm, mcfg, seq, seq // 2)
-    else:
-        xs, ys, _ = make_windows(train_takes, norm, seq, cfg.window_stride)  # (N, L, F), (N, L, P)
-        vx, vy, _ = make_windows(val_takes, norm, seq, seq // 2)
+    v_len = spec.validation_length(mcfg) if hasattr(spec, "validation_length") else seq
+    xs, ys, vx, vy = _windows(spec, mcfg, train_takes, val_takes, norm, seq, cfg.window_stride, v_len, out, info)
     if xs.shape[0] == 0:
         raise InputError(f"{cfg.data}: no training take is {seq} frames ({seq / fcfg.fps:.1f} s) long")
-    say(f"{xs.shape[0]} training / {vx.shape[0]} validation windows of {seq} frames; device {device}")
+    say(f"{xs.shape[0]} training windows of {seq} frames, {vx.shape[0]} validation of {v_len}; device {device}")
+    if val_takes and vx.shape[0] == 0:
+        say(f"no validation take is {v_len} frames ({v_len / fcfg.fps:.1f} s) long: best.pt follows the train loss")
 
     model = spec.build(mcfg).to(device)
     custom_step = hasattr(spec, "train_step")
@@ -360,6 +366,36 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
     if bar:
         bar.stop()
     return best_path
+
+
+def _windows(spec, mcfg, train_takes, val_takes, norm, seq, stride, v_len, out: Path, info: D.DistInfo):
+    """Training ``(N, seq, ·)`` and validation ``(M, v_len, ·)`` windows, memory-mapped from files that each node's
+    first rank writes under ``out`` and the other ranks map (:func:`robogest.learn.dist.builder_first`); the files
+    are unlinked once every rank has mapped them, so they vanish with the run (as anonymous temporary files do).
+    """
+    import shutil
+    import socket
+
+    store = out / f".windows-{socket.gethostname()}-{os.getpid() if not info.enabled else 'ddp'}"
+    make = getattr(spec, "make_windows", None)
+
+    def cut(takes, length, step, name):
+        if make is not None:
+            return make(takes, norm, mcfg, length, step, store=store / name)[:2]
+        return make_windows(takes, norm, length, step, store=store / name)[:2]
+
+    def read():  # writes the windows where they are missing
+        return (*cut(train_takes, seq, stride, "train"), *cut(val_takes, v_len, v_len // 2, "val"))
+
+    def build():
+        shutil.rmtree(store, ignore_errors=True)  # a crashed run's leftovers
+        return read()
+
+    arrays = D.builder_first(info, build, read)
+    D.barrier(info)  # every rank has mapped them
+    if info.local_rank == 0:
+        shutil.rmtree(store, ignore_errors=True)
+    return arrays
 
 
 def _evaluate(spec, model, vx, vy, epoch, mcfg, device, batch, info, torch) -> float:

@@ -57,7 +57,9 @@ def test_fixture_motion_follows_audio_energy(tmp_path):
 def test_feature_cache_is_used_and_invalidated(tmp_path, monkeypatch):
     root = make_fixture_dataset(tmp_path / "d", n_takes=1, duration_s=4.0)
     first = load_dataset(root, CFG, cache_dir=tmp_path / "c")
-    assert len(list((tmp_path / "c").glob("*.npz"))) == 1
+    (entry,) = (tmp_path / "c").iterdir()  # one folder per take, nothing left half-written beside it
+    assert sorted(p.name for p in entry.iterdir()) == ["acoustic.npy", "meta.json", "poses.npy", "text.npy"]
+    assert isinstance(first[0].poses, np.memmap) and not first[0].poses.flags.writeable  # mapped read-only
 
     def boom(*a, **k):
         raise AssertionError("recomputed although cached")
@@ -65,6 +67,17 @@ def test_feature_cache_is_used_and_invalidated(tmp_path, monkeypatch):
     monkeypatch.setattr(ds, "compute_take", boom)
     again = load_dataset(root, CFG, cache_dir=tmp_path / "c")
     np.testing.assert_array_equal(first[0].poses, again[0].poses)
+    (entry / "text.npy").unlink()  # a new file: writing into a mapped one would change `first`'s arrays
+    (entry / "text.npy").write_bytes(b"garbage")  # an unreadable entry is recomputed, not fatal
+    with pytest.raises(AssertionError, match="recomputed"):
+        load_dataset(root, CFG, cache_dir=tmp_path / "c")
+    monkeypatch.undo()
+    again = load_dataset(root, CFG, cache_dir=tmp_path / "c")
+    np.testing.assert_array_equal(first[0].text, again[0].text)
+    monkeypatch.setattr(ds, "compute_take", boom)
+    with pytest.raises(InputError, match="not in the feature cache"):  # a DDP rank that only maps
+        load_dataset(root, FeatureConfig(text_encoder="hash-test", text_encoder_kwargs={"dim": 4}), tmp_path / "c",
+                     build=False)  # fmt: skip
     with pytest.raises(AssertionError, match="recomputed"):  # another feature config is another key
         load_dataset(root, FeatureConfig(text_encoder="hash-test", text_encoder_kwargs={"dim": 4}), tmp_path / "c")
     wav = root / "take_000.wav"
@@ -259,3 +272,66 @@ def test_training_windows_are_read_lazily_from_disk_within_a_memory_limit():
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}  # this checkout's robogest
     r = subprocess.run([sys.executable, "-c", _LAZY_SCRIPT], capture_output=True, text=True, env=env, timeout=300)
     assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr[-2000:]
+
+
+_CACHE_SCRIPT = """
+import json, resource, sys
+from pathlib import Path
+import numpy as np
+from robogest.data import FeatureConfig, Normalization, discover_takes, load_dataset, make_windows, split_takes
+from robogest.data.datasets import cache_entry
+
+root, cache = Path(sys.argv[1]) / "takes", Path(sys.argv[1]) / "cache"
+root.mkdir()
+n_takes, frames, d_text, allow = 12, 14000, 300, 80 * 2**20
+for i in range(n_takes):  # empty recordings: every take is already in the cache, written below
+    (root / f"take_{i:03d}.wav").touch()
+    (root / f"take_{i:03d}.npz").touch()
+cfg = FeatureConfig(text_encoder="hash-test", text_encoder_kwargs={"dim": d_text})
+for i, f in enumerate(discover_takes(root)):
+    e = cache_entry(f, cfg, cache)
+    e.mkdir(parents=True)
+    rng = np.random.default_rng(i)
+    for k, d in (("acoustic", 69), ("text", d_text), ("poses", 51)):
+        np.save(e / f"{k}.npy", rng.standard_normal((frames, d), dtype=np.float32) + i)
+    (e / "meta.json").write_text(json.dumps({"fps": 20.0}))
+size = sum(p.stat().st_size for p in cache.rglob("*.npy"))
+assert size > 3 * allow, size
+
+def vm_data():
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmData:"))
+
+limit = vm_data() + allow  # heap and private mappings this process allows itself from here on
+resource.setrlimit(resource.RLIMIT_DATA, (limit, limit))
+takes = load_dataset(root, cfg, cache, warn=print)
+train, val = split_takes(takes, 0.25, 0)
+norm = Normalization.fit(train)
+x, y, idx = make_windows(train, norm, 70, 5)
+assert len(x) == len(train) * ((frames - 70) // 5 + 1)
+k = 1234
+t = train[idx[k]]
+s = (k - idx[k] * ((frames - 70) // 5 + 1)) * 5
+np.testing.assert_allclose(x[[k]][0, :, 69:], t.text[s : s + 70])
+np.testing.assert_allclose(y[[k]][0], norm.pose(t.poses[s : s + 70]), rtol=1e-6)
+mean = np.mean([t.poses[:].mean(0, dtype=np.float64) for t in train], axis=0)  # equal-length takes
+np.testing.assert_allclose(norm.pose_mean, mean, rtol=1e-5)
+try:
+    np.concatenate([t.text for t in takes])  # the dataset's features in memory, as before
+except MemoryError:
+    print("ok", size // 2**20)
+"""
+
+
+def test_feature_cache_larger_than_the_memory_allowed_is_mapped_not_loaded(tmp_path):
+    """A feature cache 3x the memory (heap, RLIMIT_DATA) the process allows itself loads, gives normalisation
+    statistics and training windows; holding its features in memory (the old way) fails under the same limit."""
+    import subprocess
+    import sys
+
+    if not os.path.exists("/proc/self/status"):
+        pytest.skip("needs /proc (Linux) to set the limit relative to the process size")
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}  # this checkout's robogest
+    r = subprocess.run([sys.executable, "-c", _CACHE_SCRIPT, str(tmp_path)], capture_output=True, text=True,
+                       env=env, timeout=300)  # fmt: skip
+    assert r.returncode == 0 and r.stdout.split()[0] == "ok", (r.stdout[-2000:], r.stderr[-2000:])

@@ -186,6 +186,54 @@ def test_generator_step_lowers_reconstruction_and_leaves_the_discriminator(two_s
     assert all(torch.equal(a, b) for a, b in zip(d_before, net.discriminator.parameters(), strict=True))
 
 
+# --- model selection -----------------------------------------------------------------------------------------------
+
+
+def test_best_is_chosen_on_a_free_running_rollout(tmp_path):
+    """The held-out loss best.pt is chosen on equals a rollout computed here by hand: chained windows, the first
+    seeded with the mean pose, each next one with the model's own last poses (as S2AGGenerator generates), and
+    differs from the teacher-forced loss (every window seeded with true poses)."""
+    from robogest.data import load_dataset, split_takes
+    from robogest.generators.learned import train_model
+    from robogest.generators.learned.s2ag.training import huber
+    from robogest.learn.checkpoint import load_checkpoint
+    from robogest.learn.trainer import TrainConfig
+
+    root = make_fixture_dataset(tmp_path / "ds", n_takes=2, duration_s=8.0, seed=5)
+    cfg = TrainConfig(
+        model="s2ag", data=str(root), out=str(tmp_path / "o"), epochs=1, batch_size=32, window_stride=4,
+        val_fraction=0.5, device="cpu", cache_dir=str(tmp_path / "c"), model_overrides={**SMALL, "val_windows": 2},
+        **HASH16,
+    )  # fmt: skip
+    best = train_model(cfg, log=lambda s: None)
+    ckpt = load_checkpoint(best)
+    chosen = ckpt["train_state"]["best_val"]
+    assert chosen == json.loads((tmp_path / "o" / "history.json").read_text())[0]["val_loss"]
+
+    c = S.SPEC.config_from_dict(ckpt["model_config"])
+    net = S.S2AGNet(c)
+    net.load_state_dict(ckpt["model_state"])
+    net.eval()
+    _, val = split_takes(load_dataset(root, FeatureConfig(**HASH16), tmp_path / "c"), 0.5, 0)
+    n = c.n_seed + 2 * (c.seq_len - c.n_seed)  # two chained windows: 85 frames
+    x, y, _ = S.SPEC.make_windows(val, None, c, n, n // 2)
+    x, y = torch.from_numpy(x[:]), torch.from_numpy(y[:])
+    assert x.shape[:2] == (2, 85)  # a 160-frame take: windows at 0 and 42
+    mfcc, text, speaker = S.split_batch(x, c)
+    gen = net.generator
+    with torch.no_grad():
+        z = gen.style(speaker)[0]
+        first, _, _, _ = gen(mfcc[:, :45], text[:, :45], torch.zeros(2, 45, 27), z=z)  # seeded with the mean pose
+        seed = torch.zeros(2, 45, 27)
+        seed[:, :5] = first[:, -5:]  # its own last 5 poses
+        second, _, _, _ = gen(mfcc[:, 40:85], text[:, 40:85], seed, z=z)
+        free = torch.cat([first, second[:, 5:]], dim=1)  # (2, 85, 27)
+        by_hand = float(huber(free, y, c.huber_beta))
+        forced = float(S.SPEC.loss(net, x[:, :45], y[:, :45], 0, c))  # true seed poses
+    assert chosen == pytest.approx(by_hand, rel=1e-5)
+    assert forced != pytest.approx(by_hand, rel=1e-3)  # 0.093 vs 0.096 after one epoch
+
+
 # --- training run --------------------------------------------------------------------------------------------------
 
 

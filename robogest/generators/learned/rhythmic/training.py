@@ -77,13 +77,13 @@ class RhythmicSpec:
     def sequence_length(self, config: RhythmicConfig) -> int:
         return config.window_blocks * config.block
 
-    def make_windows(self, takes, norm, config: RhythmicConfig, length: int, stride: int):
+    def make_windows(self, takes, norm, config: RhythmicConfig, length: int, stride: int, store=None):
         """Windows of ``length // K`` consecutive beat blocks of each whole take (:func:`take_blocks`).
 
         Beats and silent blocks are found once on the whole take, as at run time on the whole speech. The audio
         blocks come from each take's recording, time-scaled and re-analysed (a take without ``audio_path``: from
         its log-mel frames). Consecutive windows start about ``stride`` frames apart (``stride`` over the take's
-        mean clip length, in blocks).
+        mean clip length, in blocks). ``store``: :func:`slice_windows`.
 
         Returns
         -------
@@ -112,7 +112,9 @@ class RhythmicSpec:
                 yield i, x, tb.poses.reshape(n_c, -1), max(1, round(stride * n_c / t.n_frames))  # frames -> blocks
 
         # a window of W blocks of K * F values is read as (W * K, F)
-        return slice_windows(per_take(), w, 1, k * f, k * config.n_pose, (w * k, f), (w * k, config.n_pose))
+        return slice_windows(
+            per_take(), w, 1, k * f, k * config.n_pose, (w * k, f), (w * k, config.n_pose), store=store
+        )
 
     def loss(self, model, speech, poses, epoch: int, config: RhythmicConfig):
         return model(speech, poses, epoch)  # through the (possibly DDP) wrapper's forward

@@ -67,6 +67,9 @@ class S2AGConfig:
         MFCC normalisation from the training takes (37 each; empty until fitted).
     dir_mean : tuple of float
         Mean unit edge direction (27), subtracted from the model's pose space.
+    val_windows : int
+        Chained windows per held-out rollout (3: 6.25 s at 20 fps), so ``best.pt`` is chosen on windows seeded by
+        the model's own poses, as generation runs (:attr:`validation_length`).
     """
 
     n_mfcc: int = 37
@@ -96,6 +99,7 @@ class S2AGConfig:
     mfcc_mean: tuple[float, ...] = ()
     mfcc_std: tuple[float, ...] = ()
     dir_mean: tuple[float, ...] = ()
+    val_windows: int = 3
 
     @property
     def seq_len(self) -> int:
@@ -106,6 +110,11 @@ class S2AGConfig:
     def n_seed(self) -> int:
         """Known seed frames at the start of a window."""
         return max(1, round(self.seed_s * self.fps))
+
+    @property
+    def validation_length(self) -> int:
+        """Frames of one held-out rollout: :attr:`val_windows` windows chained by their seed frames."""
+        return self.n_seed + max(1, self.val_windows) * (self.seq_len - self.n_seed)
 
     @property
     def n_speakers(self) -> int:

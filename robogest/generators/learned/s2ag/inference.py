@@ -88,21 +88,12 @@ class S2AGGenerator(CheckpointGenerator):
         n_win = max(1, math.ceil((n - c.n_seed) / step))
         total = c.n_seed + n_win * step
         pad = np.minimum(np.arange(total), n - 1)  # edge padding
-        x_m = torch.from_numpy(mfcc[pad]).to(self.device)  # (total, 37)
-        x_t = torch.from_numpy(text[pad]).to(self.device)  # (total, D)
+        x_m = torch.from_numpy(mfcc[pad]).to(self.device)[None]  # (1, total, 37)
+        x_t = torch.from_numpy(text[pad]).to(self.device)[None]  # (1, total, D)
         zt = torch.from_numpy(np.asarray(z, np.float32)).to(self.device)[None]  # (1, D_s)
-        seed = torch.zeros(1, c.seq_len, 3 * N_EDGES, device=self.device)  # mean pose
-        outs = []
         with torch.inference_mode():
-            for k in range(n_win):
-                s = k * step
-                out, _, _, _ = self.model.generator(
-                    x_m[None, s : s + c.seq_len], x_t[None, s : s + c.seq_len], seed, z=zt
-                )  # (1, T, 27)
-                outs.append(out[0] if k == 0 else out[0, c.n_seed :])
-                seed = torch.zeros_like(seed)
-                seed[:, : c.n_seed] = out[:, -c.n_seed :]
-        y = torch.cat(outs)[:n].cpu().numpy() + np.asarray(c.dir_mean, np.float32)  # (n, 27)
+            out = self.model.generator.rollout(x_m, x_t, zt)[0]  # (total, 27)
+        y = out[:n].cpu().numpy() + np.asarray(c.dir_mean, np.float32)  # (n, 27)
         y = y.reshape(n, N_EDGES, 3)  # (n, 27) -> (n, 9, 3)
         return (y / np.maximum(np.linalg.norm(y, axis=-1, keepdims=True), 1e-9)).astype(np.float32)
 

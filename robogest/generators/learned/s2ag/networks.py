@@ -34,6 +34,7 @@ torch = require_torch("the 's2ag' generator")
 nn = torch.nn
 F = torch.nn.functional
 
+from robogest.errors import InputError  # noqa: E402
 from robogest.generators.learned.s2ag.config import S2AGConfig  # noqa: E402
 from robogest.generators.learned.s2ag.skeleton import (  # noqa: E402
     BODY_PARTS,
@@ -167,6 +168,36 @@ class S2AGGeneratorNet(nn.Module):
         h, _ = self.gru(torch.cat([fm, fx, fs, fa], dim=-1))  # (B, T, 2 * D_e)
         h = h[..., : c.d_gen] + h[..., c.d_gen :]  # eq. 9: forward + backward, (B, T, D_e)
         return self.out(h), z, mu, logvar  # (B, T, 27)
+
+    def rollout(self, mfcc, text, z):
+        """Free-running edge vectors over chained windows, as generation runs: window ``k`` covers frames
+        ``[k s, k s + T)`` with ``s = T - n_seed``, the first seeded with the mean pose (zeros), each next one with
+        the previous window's last ``n_seed`` outputs; no ground truth is read.
+
+        Parameters
+        ----------
+        mfcc : Tensor [shape=(B, N, 37)]
+            Normalised MFCC; ``N = n_seed + k s`` for some ``k >= 1``.
+        text : Tensor [shape=(B, N, n_text)]
+        z : Tensor [shape=(B, D_s)]
+            Style.
+
+        Returns
+        -------
+        Tensor [shape=(B, N, 27)]
+            Mean-subtracted edge vectors: the first window whole, then each next window after its seed frames.
+        """
+        c = self.config
+        step, n = c.seq_len - c.n_seed, mfcc.shape[1]
+        if n < c.seq_len or (n - c.n_seed) % step:
+            raise InputError(f"s2ag rollout: {n} frames is not n_seed + k * {step} (n_seed = {c.n_seed}, k >= 1)")
+        seed = mfcc.new_zeros(mfcc.shape[0], c.seq_len, 3 * N_EDGES)  # the mean pose
+        outs = []
+        for s in range(0, n - c.n_seed, step):
+            out, _, _, _ = self(mfcc[:, s : s + c.seq_len], text[:, s : s + c.seq_len], seed, z=z)  # (B, T, 27)
+            outs.append(out if s == 0 else out[:, c.n_seed :])
+            seed = F.pad(out[:, -c.n_seed :], (0, 0, 0, c.seq_len - c.n_seed))  # last poses first, rest unread
+        return torch.cat(outs, dim=1)  # (B, N, 27)
 
 
 class S2AGDiscriminator(nn.Module):

@@ -11,7 +11,7 @@ import numpy as np
 
 from robogest.data.datasets import speaker_key
 from robogest.data.features import FeatureConfig
-from robogest.data.prep import slice_windows
+from robogest.data.prep import moments, slice_windows
 from robogest.generators.learned.s2ag.config import S2AGConfig, mfcc_from_mel
 from robogest.generators.learned.s2ag.networks import F, S2AGNet, torch
 from robogest.generators.learned.s2ag.skeleton import N_EDGES, expmaps_to_directions
@@ -58,22 +58,21 @@ class S2AGSpec:
         return S2AGConfig.from_dict(d)
 
     def fit_config(self, config: S2AGConfig, takes: Sequence[Any]) -> S2AGConfig:
-        """Speaker table, MFCC statistics and mean direction from the training takes."""
-        mfcc = np.concatenate([mfcc_from_mel(t.acoustic[:, :64]) for t in takes]).astype(np.float64)  # (ΣT, 37)
-        dirs = np.concatenate([expmaps_to_directions(t.poses) for t in takes]).reshape(-1, 3 * N_EDGES)  # (ΣT, 27)
-        std = mfcc.std(0)
-        std = np.where(std < 1e-4, 1.0, std)
+        """Speaker table, MFCC statistics and mean direction from the training takes (one take in memory at a time)."""
+        mfcc_mean, mfcc_std = moments(mfcc_from_mel(t.acoustic[:, :64]) for t in takes)  # over ΣT frames, (37,)
+        dir_mean, _ = moments(expmaps_to_directions(t.poses).reshape(t.n_frames, -1) for t in takes)  # (27,)
         return dataclasses.replace(
             config,
             speakers=tuple(sorted({speaker_key(t.name) for t in takes})),
-            mfcc_mean=tuple(map(float, mfcc.mean(0))),
-            mfcc_std=tuple(map(float, std)),
-            dir_mean=tuple(map(float, dirs.mean(0))),
+            mfcc_mean=tuple(map(float, mfcc_mean)),
+            mfcc_std=tuple(map(float, mfcc_std)),
+            dir_mean=tuple(map(float, dir_mean)),
         )
 
-    def make_windows(self, takes, norm, config: S2AGConfig, length: int, stride: int):
+    def make_windows(self, takes, norm, config: S2AGConfig, length: int, stride: int, store=None):
         """Windows of ``[normalised MFCC | text | speaker index]`` ``(N, L, 37 + D + 1)`` and mean-subtracted
-        directions ``(N, L, 27)``; the trainer's exp-map normalisation ``norm`` is not used."""
+        directions ``(N, L, 27)`` (``store``: :func:`slice_windows`); the trainer's exp-map normalisation ``norm``
+        is not used."""
         table = {s: i for i, s in enumerate(config.speakers)}
         mean, std = np.asarray(config.mfcc_mean, np.float32), np.asarray(config.mfcc_std, np.float32)
 
@@ -85,7 +84,7 @@ class S2AGSpec:
             return x, y
 
         per_take = ((i, *take_arrays(t)) for i, t in enumerate(takes) if t.n_frames >= length)
-        return slice_windows(per_take, length, stride, config.n_input, 3 * N_EDGES)
+        return slice_windows(per_take, length, stride, config.n_input, 3 * N_EDGES, store=store)
 
     def build(self, config: S2AGConfig) -> S2AGNet:
         return S2AGNet(config)
@@ -104,11 +103,27 @@ class S2AGSpec:
         }
 
     def loss(self, model, speech, poses, epoch: int, config: S2AGConfig):
-        """Huber reconstruction of the edge vectors (the validation loss; styles at their means in eval mode)."""
+        """Huber reconstruction of the edge vectors, each window seeded with its true first poses (teacher-forced)."""
         gen = _unwrap(model).generator
         mfcc, text, speaker = split_batch(speech, config)
         out, _, _, _ = gen(mfcc, text, poses, speaker)
         return huber(out, poses, config.huber_beta)
+
+    def validation_length(self, config: S2AGConfig) -> int:
+        """Held-out sequences span :attr:`S2AGConfig.val_windows` chained windows (6.25 s by default)."""
+        return config.validation_length
+
+    def validation_loss(self, model, speech, poses, epoch: int, config: S2AGConfig):
+        """Huber loss of a free-running rollout (:meth:`S2AGGeneratorNet.rollout`), what ``best.pt`` is chosen on.
+
+        As :class:`S2AGGenerator` generates: the first window seeded with the mean pose, each next one with the
+        model's own last poses, the speaker's mean style; the ground truth is only the target. (The teacher-forced
+        :meth:`loss` seeds every window with true poses and so never sees the model's own drift.)
+        """
+        gen = _unwrap(model).generator
+        mfcc, text, speaker = split_batch(speech, config)
+        z, _ = gen.style(speaker)  # the style's mean, as generate(speaker=k)
+        return huber(gen.rollout(mfcc, text, z), poses, config.huber_beta)
 
     def discriminator_step(self, model, opt, fake, real) -> float:
         """One D update on generated ``fake`` and ``real`` ``(B, T, 27)``; eq. 16 as binary cross-entropy."""
