@@ -324,7 +324,7 @@ def _settle(
 
 
 def check_limits(q: np.ndarray, limits: JointLimits, dt_s: float, lo: np.ndarray, hi: np.ndarray) -> None:
-    """Raise :class:`SafetyError` unless ``q`` is within ``[lo, hi]``, ``|d| ≤ V`` and ``|Δd| ≤ A`` (+ ``TOL``).
+    """Raise :class:`SafetyError` unless ``q`` is finite, within ``[lo, hi]``, ``|d| ≤ V`` and ``|Δd| ≤ A`` (+ ``TOL``).
 
     Parameters
     ----------
@@ -334,6 +334,8 @@ def check_limits(q: np.ndarray, limits: JointLimits, dt_s: float, lo: np.ndarray
     dt_s : float, seconds
     lo, hi : ndarray [shape=(J,)], radians
     """
+    if not np.all(np.isfinite(q)):  # NaN compares False with every bound below
+        raise SafetyError("safety: command trajectory holds NaN or infinite angles (internal check)")
     pos_bad = np.any((q < lo - TOL) | (q > hi + TOL) | (q < limits.q_min_rad - TOL) | (q > limits.q_max_rad + TOL))
     d = np.diff(q, axis=0, prepend=q[:1])
     vel_bad = np.any(np.abs(d) > limits.v_max_rad_s * dt_s + TOL)

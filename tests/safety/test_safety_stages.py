@@ -20,7 +20,7 @@ from robogest.safety import (
     smooth,
     track,
 )
-from robogest.safety.stages import _brake_step
+from robogest.safety.stages import _brake_step, check_limits
 
 
 def limits1(q_min=-20.0, q_max=20.0, v=10.0, a=1.0, rest=0.0, n=1) -> JointLimits:
@@ -295,3 +295,12 @@ def test_clipped_fraction_reports_clamping():
     assert 0.5 <= res.clipped_fraction <= 1.0
     res_ok = apply_safety(np.zeros((50, 2)), lim, 50.0)
     assert res_ok.clipped_fraction == 0.0
+
+
+def test_the_internal_check_refuses_nan_angles():
+    lim = limits1()
+    q = np.zeros((5, 1))
+    check_limits(q, lim, 0.02, lim.q_min_rad, lim.q_max_rad)
+    q[3] = np.nan  # compares False with every bound: it used to pass
+    with pytest.raises(SafetyError, match="NaN"):
+        check_limits(q, lim, 0.02, lim.q_min_rad, lim.q_max_rad)
