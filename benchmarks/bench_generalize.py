@@ -5,8 +5,11 @@ BEAT2 take (speaker "scott"); everything else is held out: the take's second hal
 different lengths, punctuation and speaking rates, and other eSpeak voices (the only other speech this
 offline machine has). For every clip and each of 10 seeds it measures, on the generated human motion:
 
-- stroke-sync z (:func:`robogest.eval.beats.stroke_sync`: wrist-speed peaks during speech against librosa's
-  default onsets, chance from circular shifts);
+- stroke-sync z (:func:`robogest.eval.beats.stroke_sync`: wrist-speed peaks during speech that precede a
+  stressed-vowel onset by 0 to 0.2 s, chance from circular shifts). The events are stressed-vowel onsets,
+  the kind the measure is validated with: the take's forced alignment (TextGrid phones, ARPAbet stress 1/2)
+  for the BEAT2 halves, eSpeak NG's own stressed syllables (:func:`robogest.speech.synthesize_with_stress`)
+  for the synthesized clips; no generator sees either;
 - wrist speed and acceleration during speech, as ratios to the speaker's in the calibration half (the
   reference is calibration data too, so no held-out motion is ever looked at); the motion is generated at
   the mocap's 30 fps so finite differences are comparable;
@@ -20,7 +23,7 @@ offline machine has). For every clip and each of 10 seeds it measures, on the ge
 
 The table gives mean and worst seed per clip and metric (worst: lowest z / rest, largest Hellinger, ratio
 farthest from 1), the calibration clip apart from the held-out ones. Run:
-``.venv/bin/python benchmarks/bench_generalize.py [--seeds N] [--calibration-only] [--no-robot]``.
+``.venv/bin/python benchmarks/bench_generalize.py [--seeds N] [--calibration-only] [--no-robot] [--only TEXT]``.
 """
 
 from __future__ import annotations
@@ -72,6 +75,7 @@ TTS: list[tuple[str, str, int, str]] = [
 class Clip:
     name: str
     speech: object  # robogest.speech.types.Speech
+    stressed_vowels_s: np.ndarray  # the stroke-sync reference events, s; never given to a generator
     calibration: bool = False
 
 
@@ -93,10 +97,12 @@ def beat2_clips() -> tuple[list[Clip], dict]:
     """The two halves of the shared take and the speaker's reference statistics (calibration half only)."""
     from robogest.motion import load_motion
     from robogest.speech import load_speech
+    from robogest.speech.transcript import read_stressed_vowels
 
     if not BEAT2.with_suffix(".wav").is_file():
         return [], {}
     full = load_speech(BEAT2.with_suffix(".wav"), BEAT2.with_suffix(".TextGrid"))
+    stressed = read_stressed_vowels(BEAT2.with_suffix(".TextGrid"))
     mocap = load_motion(BEAT2.with_suffix(".npz"))
     end = mocap.n_frames / mocap.fps
     calib = _cut(full, 0.0, CUT_S)
@@ -104,7 +110,14 @@ def beat2_clips() -> tuple[list[Clip], dict]:
     pos = mocap.positions()[: round(CUT_S * mocap.fps)]
     w = pos[:, [mocap.skeleton.index("l_wrist"), mocap.skeleton.index("r_wrist")]]
     ref = wrist_stats(w, mocap.fps, calib.silent_spans)
-    clips = [Clip("BEAT2 scott 0-32 s", calib, calibration=True), Clip(f"BEAT2 scott 32-{end:.0f} s", held)]
+
+    def cut_events(t0: float, t1: float) -> np.ndarray:
+        return stressed[(stressed >= t0) & (stressed < t1)] - t0
+
+    clips = [
+        Clip("BEAT2 scott 0-32 s", calib, cut_events(0.0, CUT_S), calibration=True),
+        Clip(f"BEAT2 scott 32-{end:.0f} s", held, cut_events(CUT_S, end)),
+    ]
     return clips, ref
 
 
@@ -137,20 +150,23 @@ def rest_held(w: np.ndarray, fps: float, silent_spans, duration_s: float) -> flo
 
 
 def tts_clips() -> list[Clip]:
-    from robogest.speech import synthesize
+    from robogest.speech import synthesize_with_stress
 
-    return [Clip(name, synthesize(text, voice=voice, words_per_minute=wpm)) for name, voice, wpm, text in TTS]
+    return [
+        Clip(name, *synthesize_with_stress(text, voice=voice, words_per_minute=wpm)) for name, voice, wpm, text in TTS
+    ]
 
 
 def measure(clip: Clip, ref: dict, seeds: range, robot=None, generator_options: dict | None = None) -> dict:
     """Per-seed metrics of one clip: lists under each metric name."""
-    from robogest.eval.beats import audio_onsets, chance_corrected, stroke_hit_rate, stroke_sync
+    from robogest.eval.beats import chance_corrected, stroke_hit_rate, stroke_sync, stroke_sync_events
     from robogest.eval.kinematics import hellinger_distance, speed_histogram
     from robogest.generators import make_generator
 
     sp = clip.speech
     gen = make_generator("rhythm", fps=MOCAP_FPS, **(generator_options or {}))
-    onsets = audio_onsets(sp.audio, sp.sr)
+    onsets, kind = stroke_sync_events(sp.audio, sp.sr, stressed_vowels_s=clip.stressed_vowels_s)
+    assert kind == "stressed_vowels", kind
     spans = list(sp.silent_spans)
     out: dict[str, list[float]] = {k: [] for k in ("z", "speed", "acc", "hellinger", "rest", "robot_z", "robot/human")}
     # The most any generator could score here: one stroke on every acoustic beat the generator can see.
@@ -221,6 +237,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--calibration-only", action="store_true", help="only the calibration half (for tuning)")
     ap.add_argument("--no-robot", action="store_true", help="skip the robot (retarget + safety + MuJoCo sites)")
+    ap.add_argument("--only", metavar="TEXT", help="only the clips whose name contains TEXT (a smoke run)")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     clips, ref = beat2_clips()
@@ -231,6 +248,8 @@ def main(argv: list[str]) -> int:
         clips = clips[:1]
     else:
         clips += tts_clips()
+    if args.only:
+        clips = [c for c in clips if args.only in c.name]
     robot = None
     if not args.no_robot:
         from robogest.robot import find_robot

@@ -375,7 +375,10 @@ def stroke_sync(
     held-out result (the variant was picked after the second half had been looked at; the calibration-half
     winners, sparse librosa onsets, fail there). Against librosa's default onsets (4.3/s, chance hit rate
     0.75 at ±0.1 s) the take scores at chance (z = -0.7), and no audio-only detector tried held up on the
-    second half, so without stressed-vowel timings the measure is not validated.
+    second half, so without stressed-vowel timings the measure is not validated. For synthesized speech the
+    events are eSpeak NG's stressed syllables (:func:`robogest.speech.synthesize_with_stress`): the same kind of
+    event from another source, checked only to sit on loud voiced stretches (``benchmarks/diag_tts_stress.py``),
+    not validated against motion.
 
     Parameters
     ----------
@@ -416,13 +419,19 @@ def stroke_sync(
     }
 
 
-def stroke_sync_events(audio: np.ndarray, sr: int, transcript: str | Path | None = None) -> tuple[np.ndarray, str]:
+def stroke_sync_events(
+    audio: np.ndarray,
+    sr: int,
+    transcript: str | Path | None = None,
+    stressed_vowels_s: np.ndarray | None = None,
+) -> tuple[np.ndarray, str]:
     """Audio events for :func:`stroke_sync` and which kind they are.
 
-    Stressed-vowel onsets from the transcript's ``phones`` tier
-    (:func:`robogest.speech.transcript.read_stressed_vowels`, kind ``"stressed_vowels"``) where it has one:
-    the only events the measure is validated with. Otherwise :func:`audio_onsets` (kind
-    ``"librosa_onsets"``), reported but not validated (see :func:`stroke_sync`).
+    Stressed-vowel onsets (kind ``"stressed_vowels"``), the only events the measure is validated with:
+    ``stressed_vowels_s`` when given (for synthesized speech, from
+    :func:`robogest.speech.synthesize_with_stress`), else the transcript's ``phones`` tier
+    (:func:`robogest.speech.transcript.read_stressed_vowels`) where it has one. Otherwise :func:`audio_onsets`
+    (kind ``"librosa_onsets"``), reported but not validated (see :func:`stroke_sync`).
 
     Parameters
     ----------
@@ -431,11 +440,15 @@ def stroke_sync_events(audio: np.ndarray, sr: int, transcript: str | Path | None
         Sample rate, Hz.
     transcript : path, optional
         Transcript file (a forced-alignment TextGrid with a ``phones`` tier gives stressed vowels).
+    stressed_vowels_s : ndarray [shape=(K,)], seconds, optional
+        Stressed-vowel onsets known from elsewhere (eSpeak's phoneme events for TTS clips).
 
     Returns
     -------
     (ndarray [shape=(K,)], seconds, str)
     """
+    if stressed_vowels_s is not None:
+        return np.sort(np.asarray(stressed_vowels_s, dtype=np.float64).ravel()), "stressed_vowels"
     if transcript is not None:
         from robogest.speech.transcript import read_stressed_vowels
 

@@ -23,7 +23,7 @@ from robogest.speech.silence import (
     silent_spans,
 )
 from robogest.speech.transcript import count_syllables, normalize_word, read_transcript, spread_words, validate_words
-from robogest.speech.tts import espeak_synthesize
+from robogest.speech.tts import espeak_synthesize, espeak_synthesize_phonemes, stressed_vowel_onsets
 from robogest.speech.types import Speech, Word
 
 _DEFAULT = SpeechConfig()
@@ -246,6 +246,37 @@ def synthesize(
     MissingDependencyError
         eSpeak NG (``espeakng-loader``) is not installed.
     """
+    return _synthesize(text, voice, words_per_minute, config, pause_s, stress=False)[0]
+
+
+def synthesize_with_stress(
+    text: str,
+    voice: str = "en-us",
+    words_per_minute: int = 160,
+    config: SpeechConfig = _DEFAULT,
+    pause_s: float = 1.2,
+) -> tuple[Speech, np.ndarray]:
+    """:func:`synthesize` and the onsets of the stressed syllables eSpeak spoke, for evaluation only.
+
+    The onsets are the stroke-sync measure's reference events for synthesized speech
+    (:func:`robogest.eval.beats.stroke_sync_events`), the TTS counterpart of a forced alignment's
+    stressed-vowel onsets. They are returned beside the Speech, not in it, so no generator can place strokes on
+    them. The Speech is the one :func:`synthesize` returns (same samples: eSpeak's phoneme events do not
+    change its audio). See :func:`robogest.speech.tts.stressed_vowel_onsets` for how they are derived.
+
+    Returns
+    -------
+    speech : Speech
+    stressed_vowels_s : ndarray [shape=(K,)], seconds
+        Increasing onsets on the Speech's timeline (ellipsis pauses included).
+    """
+    return _synthesize(text, voice, words_per_minute, config, pause_s, stress=True)
+
+
+def _synthesize(
+    text: str, voice: str, words_per_minute: int, config: SpeechConfig, pause_s: float, stress: bool
+) -> tuple[Speech, np.ndarray]:
+    """:func:`synthesize`; with ``stress`` also eSpeak's stressed-syllable onsets (s), else an empty array."""
     if not isinstance(text, str) or not text.strip():
         raise InputError("tts: the text is empty")
     if not 0 <= pause_s <= 10:
@@ -256,12 +287,18 @@ def synthesize(
         raise InputError(f"{source}: the text has no speakable words: {text[:40]!r}")
     parts: list[np.ndarray] = []
     spoken: list[tuple[int, str]] = []  # (start sample at eSpeak's rate, word text)
+    stressed: list[np.ndarray] = []  # seconds
     offset, esr = 0, 0
     for i, chunk in enumerate(chunks):
-        raw, esr, events = espeak_synthesize(chunk, voice, words_per_minute)
+        if stress:
+            raw, esr, events, phonemes = espeak_synthesize_phonemes(chunk, voice, words_per_minute)
+        else:
+            raw, esr, events = espeak_synthesize(chunk, voice, words_per_minute)
         if i > 0:
             parts.append(np.zeros(round(pause_s * esr), dtype=np.float32))
             offset += parts[-1].shape[0]
+        if stress:
+            stressed.append(offset / esr + stressed_vowel_onsets(phonemes, esr))
         spoken += [(offset + e.start_sample, chunk[e.char_start : e.char_end]) for e in events]
         parts.append(raw)
         offset += raw.shape[0]
@@ -290,4 +327,5 @@ def synthesize(
         words.append(Word(token, s0 / config.sr, s1 / config.sr, count_syllables(token)))
     if not words:
         raise InputError(f"{source}: the text has no speakable words: {text[:40]!r}")
-    return analyze(a, config.sr, words, config, source=source, text=text)
+    speech = analyze(a, config.sr, words, config, source=source, text=text)
+    return speech, (np.concatenate(stressed) if stressed else np.zeros(0))

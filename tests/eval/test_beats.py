@@ -16,6 +16,7 @@ from robogest.eval.beats import (
     stroke_hit_rate,
     stroke_peaks,
     stroke_sync,
+    stroke_sync_events,
 )
 
 FPS = 30.0
@@ -170,3 +171,14 @@ def test_stroke_sync_ignores_peaks_in_pauses(rng):
     r = stroke_sync(_strokes_at(strokes, 20.0), FPS, on, silent_spans=pause, n_shifts=30)
     assert r["hit"] == pytest.approx(1.0)
     assert r["n_peaks"] == int((on < 5).sum())
+
+
+def test_stroke_sync_events_given_stressed_vowels_win(tmp_path):
+    # Known stressed-vowel onsets (a TTS clip's) are used as they are, before any transcript or detector.
+    tg = tmp_path / "x.TextGrid"
+    tg.write_text("not a TextGrid")  # would raise if it were read
+    audio = np.zeros(22050, dtype=np.float32)
+    ev, kind = stroke_sync_events(audio, 22050, tg, stressed_vowels_s=np.array([0.9, 0.2, 0.5]))
+    assert kind == "stressed_vowels" and ev.tolist() == [0.2, 0.5, 0.9]
+    ev, kind = stroke_sync_events(audio, 22050)
+    assert kind == "librosa_onsets" and ev.size == 0  # silence has no onsets
