@@ -321,6 +321,7 @@ CASES = [
     Case("fps-inf", ["speak", "Hi", "--fps", "inf"], None, 2,
          r"argument --fps: inf is out of range; expected 1\.\.1000 Hz"),
     Case("fps-1e7", ["play", "t.npz", "--fps", "1e7"], None, 2, r"argument --fps: 1e7 is out of range"),
+    Case("stop-within-0", ["serve", "--stop-within", "0"], None, 2, r"argument --stop-within: 0 is out of range"),
     Case("fps-nan", ["play", "t.npz", "--fps", "nan"], None, 2, r"argument --fps: nan is out of range"),
     Case("fps-word", ["speak", "Hi", "--fps", "fast"], None, 2, r"argument --fps: 'fast' is not a number"),
     Case("seed-negative", ["speak", "Hi", "--seed", "-1"], None, 2,
