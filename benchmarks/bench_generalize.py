@@ -16,14 +16,18 @@ offline machine has). For every clip and each of 10 seeds it measures, on the ge
 - Hellinger distance between the wrist-speed histograms (1 cm/s bins, speech frames) of the two;
 - rest: fraction of pauses of 1 s or more in which the wrists hold still (< 1 cm/s) from 0.6 s after the
   pause starts to 0.45 s before it ends;
-- ceiling_z: the z of strokes on every acoustic beat the generator sees (no seeds): what this metric
-  allows on the clip at all (short clips with dense onsets cap it well below 4);
+- ceiling_z: the z of strokes on every acoustic beat the generator sees, each ``stroke_lead_s`` before
+  its beat as the generator places them (no seeds): what this metric allows a generator that strokes on
+  those beats (short clips with dense onsets cap it well below 4);
 - on the robot (humanoid_xl430: retarget + safety layer at 50 Hz, MuJoCo wrist sites of the command
   trajectory): stroke-sync z and its ratio to the human motion's z of the same seed.
 
 The table gives mean and worst seed per clip and metric (worst: lowest z / rest, largest Hellinger, ratio
 farthest from 1), the calibration clip apart from the held-out ones. Run:
 ``.venv/bin/python benchmarks/bench_generalize.py [--seeds N] [--calibration-only] [--no-robot] [--only TEXT]``.
+Calibrating a ``RhythmConfig`` field: ``--calibration-only --grid NAME=V1,V2,...`` prints the table for each
+value and the value with the highest mean stroke-sync z on the calibration half (use it only with
+``--calibration-only``: choosing on held-out clips would tune to them).
 """
 
 from __future__ import annotations
@@ -169,8 +173,8 @@ def measure(clip: Clip, ref: dict, seeds: range, robot=None, generator_options: 
     assert kind == "stressed_vowels", kind
     spans = list(sp.silent_spans)
     out: dict[str, list[float]] = {k: [] for k in ("z", "speed", "acc", "hellinger", "rest", "robot_z", "robot/human")}
-    # The most any generator could score here: one stroke on every acoustic beat the generator can see.
-    beats = gen.beats(sp).t_s
+    # The most this generator could score here: one stroke (led as it leads them) on every beat it can see.
+    beats = gen.beats(sp).t_s - gen.config.stroke_lead_s
     ceiling = chance_corrected(lambda m, a: stroke_hit_rate(m, a, spans), beats, onsets, sp.duration_s)["z"]
     out["ceiling_z"] = [ceiling]
     for seed in seeds:
@@ -238,7 +242,12 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--calibration-only", action="store_true", help="only the calibration half (for tuning)")
     ap.add_argument("--no-robot", action="store_true", help="skip the robot (retarget + safety + MuJoCo sites)")
     ap.add_argument("--only", metavar="TEXT", help="only the clips whose name contains TEXT (a smoke run)")
+    ap.add_argument("--grid", metavar="NAME=V1,V2,...", help="run once per value of a RhythmConfig field")
     args = ap.parse_args(argv)
+    grid: list[dict] = [{}]
+    if args.grid:
+        name, _, values = args.grid.partition("=")
+        grid = [{name: float(v)} for v in values.split(",") if v]
     t0 = time.perf_counter()
     clips, ref = beat2_clips()
     if not clips:
@@ -255,10 +264,18 @@ def main(argv: list[str]) -> int:
         from robogest.robot import find_robot
 
         robot = find_robot(ROBOT)
-    results = {c.name: measure(c, ref, range(args.seeds), robot) for c in clips}
     print(f"generator 'rhythm', {args.seeds} seeds per clip; mean (worst seed); speed/acc as ratios to the speaker's")
     print(f"reference speaker: calibration half, speech frames: {ref['speed']:.1f} cm/s, {ref['acc']:.0f} cm/s²")
-    print("\n".join(table(results, {c.name for c in clips if c.calibration})))
+    calib_z = []
+    for opts in grid:
+        results = {c.name: measure(c, ref, range(args.seeds), robot, opts) for c in clips}
+        if opts:
+            print(f"== {opts}")
+        print("\n".join(table(results, {c.name for c in clips if c.calibration})))
+        calib_z += [(float(np.mean(results[c.name]["z"])), str(opts)) for c in clips if c.calibration]
+    if len(grid) > 1 and calib_z:
+        best = max(calib_z)
+        print(f"grid: highest mean z on the calibration half {best[0]:.2f} at {best[1]}")
     print(f"wall {time.perf_counter() - t0:.0f} s")
     return 0
 

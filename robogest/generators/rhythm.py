@@ -89,6 +89,16 @@ class RhythmConfig:
         distance from 0.64 to about 0.43, at a cost in stroke-sync z (3.7 -> about 3.1, 10 seeds): the
         drift shifts the strokes' speed peaks a little. 0.3 Hz kept more z (3.3) with 16 cm circles, 0.8 Hz
         less (2.8).
+    stroke_lead_s : float
+        How far before its acoustic beat an arm stroke's wrist-speed peak is placed (preparations and
+        relaxations, which also peak on beats, lead by the same amount). Gesture strokes precede the
+        prosodic peak they go with: the stroke ends at, not after, the stressed syllable (McNeill 1992's
+        phonological synchrony rule; Leonard & Cummins 2011 find the hand's apex at the stressed syllable),
+        so its speed peak comes before the vowel onset, which is about where an acoustic beat (a loudness
+        rise) lies. Tagged gestures (``^gesture(name)``) are not led: their stroke peaks on the beat of
+        their word, as documented. Head moves stay on their beat. Picked by mean stroke-sync z on the BEAT2
+        calibration half only (``bench_generalize.py --calibration-only --no-robot --grid``, 10 seeds):
+        0 s 2.54, 0.02 s 3.44, 0.04-0.10 s a plateau of 3.76-3.97 (highest at 0.05 s), 0.12 s 3.26.
     semantic : str
         ``"keywords"`` (trigger words only) or ``"embedding"``: sentences whose words trigger no arm unit
         get the unit whose ``meaning`` is closest in MiniLM sentence embedding (needs the learn extra).
@@ -120,6 +130,7 @@ class RhythmConfig:
     max_joint_speed_rad_s: float | None = None
     max_joint_accel_rad_s2: float | None = None
     semantic: str = "keywords"
+    stroke_lead_s: float = 0.05
     drift_m_s: float = 0.3
     drift_hz: float = 0.5
 
@@ -196,6 +207,8 @@ class RhythmGenerator(Generator):
             raise InputError(f"gestures must be 'auto' or 'none', got {c.gestures!r}")
         if c.semantic not in ("keywords", "embedding"):
             raise InputError(f"semantic must be 'keywords' or 'embedding', got {c.semantic!r}")
+        if not 0.0 <= c.stroke_lead_s <= 0.5:
+            raise InputError(f"stroke_lead_s must be within [0, 0.5] s, got {c.stroke_lead_s}")
         self._meaning = None
         self.repertoire = repertoire or lx.default_repertoire()
         self._fk_cache: dict[bytes, tuple[float, float]] = {}
@@ -430,11 +443,17 @@ class RhythmGenerator(Generator):
             tr.add(b - half, tr.last_v)
             tr.add(b + half, READY)
 
+    def stroke_peak_s(self, e: GestureEvent) -> float:
+        """Where the wrist-speed peak of arm event ``e``'s stroke is placed, s: ``stroke_lead_s`` before its
+        beat, or on it for a tagged gesture (pinned to its word)."""
+        return e.t_s if e.source.startswith("tag:") else e.t_s - self.config.stroke_lead_s
+
     def _arm_track(
         self, events: list[GestureEvent], rests: list[tuple[float, float]], end_s: float, beats_s: np.ndarray
     ) -> tuple[_Track, list[tuple[float, float, GestureEvent]]]:
-        """Arm/spine keyframes: each gesture is prep -> stroke (centred on its beat) -> hold. Every move made
-        while speaking is centred on an acoustic beat (preparations and relaxations are slower than strokes);
+        """Arm/spine keyframes: each gesture is prep -> stroke (peak ``stroke_lead_s`` before its beat, see
+        :meth:`stroke_peak_s`) -> hold. Every move made while speaking peaks ``stroke_lead_s`` before an
+        acoustic beat (preparations and relaxations are slower than strokes);
         where speech goes on without a chosen beat the pose is held; in rest windows the arms sit exactly
         at REST (the retraction starts when the pause does). Also returns the placed strokes
         ``(start_s, end_s, event)``."""
@@ -444,7 +463,10 @@ class RhythmGenerator(Generator):
         tr.add(0.0, REST)
         arm = [e for e in events if self.repertoire.units[e.unit].channel == "arms"]
         units = self.repertoire.units
-        items: list[tuple[float, str, object]] = [(e.t_s - units[e.unit].stroke_s / 2, "event", e) for e in arm]
+        moves_s = beats_s - c.stroke_lead_s  # where preparations and relaxations peak (s)
+        items: list[tuple[float, str, object]] = [
+            (self.stroke_peak_s(e) - units[e.unit].stroke_s / 2, "event", e) for e in arm
+        ]
         items += [(r0, "rest", (r0, r1)) for r0, r1 in rests]
         items.sort(key=lambda x: (x[0], x[1] != "rest"))
         for _, kind, obj in items:
@@ -461,7 +483,8 @@ class RhythmGenerator(Generator):
             stroke_pose = READY + e.amplitude * u.stroke
             stroke_s = max(c.stroke_scale * u.stroke_s, self._min_time_s(prep_pose, stroke_pose))
             f_s = self._path(prep_pose, stroke_pose)[1]
-            s0, s1 = e.t_s - f_s * stroke_s, e.t_s + (1 - f_s) * stroke_s
+            pk = self.stroke_peak_s(e)
+            s0, s1 = pk - f_s * stroke_s, pk + (1 - f_s) * stroke_s
             hold_end = s1 + c.hold_scale * u.hold_s
             nxt = [r0 for r0, _ in rests if r0 > tr.last_t]
             if s0 < tr.last_t + 1e-6:
@@ -469,11 +492,11 @@ class RhythmGenerator(Generator):
             if nxt and hold_end + max(c.retract_s, self._min_time_s(stroke_pose, REST)) > nxt[0]:
                 continue  # it would run into a rest period
             if s0 - tr.last_t > c.ready_after_s + 2 * c.prep_s:
-                self._relax_on_beat(tr, beats_s, s0 - c.prep_s)
-            # Preparation: a slower move into the prep pose whose speed peak lies on an earlier acoustic beat,
+                self._relax_on_beat(tr, moves_s, s0 - c.prep_s)
+            # Preparation: a slower move into the prep pose whose speed peak leads an earlier acoustic beat,
             # so it never adds a peak off the beat. Without such a beat the stroke starts from the held pose.
             need = max(c.min_prep_s, self._min_time_s(tr.last_v, prep_pose) / c.prep_speed_ratio)
-            prep = self._prep_beat(beats_s, tr.last_t, s0, need, self._path(tr.last_v, prep_pose)[1])
+            prep = self._prep_beat(moves_s, tr.last_t, s0, need, self._path(tr.last_v, prep_pose)[1])
             if prep is not None:
                 tr.add(prep[1], tr.last_v)
                 tr.add(s0, prep_pose)
@@ -481,9 +504,9 @@ class RhythmGenerator(Generator):
             else:
                 d = max(stroke_s, self._min_time_s(tr.last_v, stroke_pose))
                 f_d = self._path(tr.last_v, stroke_pose)[1]
-                if e.t_s - f_d * d < tr.last_t + 1e-6:
+                if pk - f_d * d < tr.last_t + 1e-6:
                     continue  # no time for the stroke at a natural speed
-                s0, s1 = e.t_s - f_d * d, e.t_s + (1 - f_d) * d
+                s0, s1 = pk - f_d * d, pk + (1 - f_d) * d
                 hold_end = s1 + c.hold_scale * u.hold_s
                 if nxt and hold_end + max(c.retract_s, self._min_time_s(stroke_pose, REST)) > nxt[0]:
                     continue
@@ -497,7 +520,8 @@ class RhythmGenerator(Generator):
         return tr, placed
 
     def strokes(self, speech: Speech, seed: int = 0) -> list[tuple[float, float, GestureEvent]]:
-        """The arm strokes :meth:`generate` makes: ``(start_s, end_s, event)``, speed peak at ``event.t_s``."""
+        """The arm strokes :meth:`generate` makes: ``(start_s, end_s, event)``, speed peak at
+        :meth:`stroke_peak_s` of the event (``stroke_lead_s`` before ``event.t_s``, on it for tags)."""
         ab = self.beats(speech)
         return self._arm_track(self.plan(speech, seed, ab), self.rest_windows(speech), speech.duration_s, ab.t_s)[1]
 

@@ -74,12 +74,15 @@ def test_all_silence_gives_rest_only():
     assert RhythmGenerator().plan(sp) == []
 
 
-def test_strokes_land_on_beats():
-    """The wrist-speed peak of each stroke falls on its acoustic beat (within one 50 fps frame), and the
-    motion has no speed peak off the beats: preparations are centred on earlier beats or left out."""
+@pytest.mark.parametrize("lead_s", [0.0, 0.1])
+def test_strokes_lead_their_beats(lead_s):
+    """The wrist-speed peak of each stroke falls ``stroke_lead_s`` before its acoustic beat (within one 50 fps
+    frame), and the motion has no speed peak off the led beats: preparations peak the same lead before
+    earlier beats or are left out."""
     beats = [1.0, 1.45, 2.5, 2.9, 4.0, 4.4, 5.5]
     sp = build_speech(7.0, beats, [])
-    g = RhythmGenerator(RhythmConfig(fps=50.0, gesture_rate=3.0, head_beat_prob=0.0, sway_rad=0.0, drift_m_s=0.0))
+    cfg = RhythmConfig(fps=50.0, gesture_rate=3.0, head_beat_prob=0.0, sway_rad=0.0, drift_m_s=0.0)
+    g = RhythmGenerator(cfg, stroke_lead_s=lead_s)
     found = g.beats(sp).t_s
     np.testing.assert_allclose(found, beats, atol=0.03)  # the detector finds each syllable's onset
     strokes = g.strokes(sp, seed=0)
@@ -91,15 +94,23 @@ def test_strokes_land_on_beats():
     for s0, s1, e in strokes:
         win = (tv >= s0) & (tv <= s1)
         peak_t = tv[win][np.argmax(v[win])]
-        assert abs(peak_t - e.t_s) <= 0.021, f"{e.unit} peak at {peak_t:.3f}, beat at {e.t_s:.3f}"
+        assert g.stroke_peak_s(e) == pytest.approx(e.t_s - lead_s)
+        assert abs(peak_t - (e.t_s - lead_s)) <= 0.021, f"{e.unit} peak at {peak_t:.3f}, beat at {e.t_s:.3f}"
     w = m.positions()[:, [m.skeleton.index("l_wrist"), m.skeleton.index("r_wrist")]]
     peaks = stroke_peaks(w, m.fps)
     peaks = peaks[peaks < 6.5]  # the final retraction to rest is not a gesture
     assert peaks.size >= len(strokes)
-    assert np.abs(peaks[:, None] - found[None]).min(axis=1).max() <= 0.03, peaks
+    assert np.abs(peaks[:, None] - (found[None] - lead_s)).min(axis=1).max() <= 0.03, peaks
 
 
-def test_preparation_is_centred_on_an_earlier_beat_and_slower_than_its_stroke():
+def test_stroke_lead_out_of_range_is_input_error():
+    from robogest.errors import InputError
+
+    with pytest.raises(InputError, match=r"stroke_lead_s must be within \[0, 0.5\] s, got -0.1"):
+        RhythmGenerator(stroke_lead_s=-0.1)
+
+
+def test_preparation_leads_an_earlier_beat_and_is_slower_than_its_stroke():
     from robogest.generators.rhythm import GestureEvent
 
     beats = np.array([1.0, 1.5, 3.0, 3.5])
@@ -112,11 +123,12 @@ def test_preparation_is_centred_on_an_earlier_beat_and_slower_than_its_stroke():
     v = np.linalg.norm(np.diff(w, axis=0), axis=-1).max(axis=1) / 0.005  # (T-1,) m/s
     tv = t[:-1] + 0.0025
     # The first stroke leaves rest: no earlier beat leaves room for a slow enough preparation, so it
-    # starts straight from rest; the second one's preparation is centred on the beat at 3.0 s.
+    # starts straight from rest; the second one's preparation peaks stroke_lead_s before the beat at 3.0 s.
+    lead = g.config.stroke_lead_s
     for prep_beat, (s0, s1, _) in zip((3.0,), placed[1:], strict=True):
         prep = (tv > 2 * prep_beat - s0) & (tv < s0)
         stroke = (tv >= s0) & (tv <= s1)
-        assert abs(tv[prep][np.argmax(v[prep])] - prep_beat) < 0.03  # the preparation peaks on its beat
+        assert abs(tv[prep][np.argmax(v[prep])] - (prep_beat - lead)) < 0.03  # the preparation leads its beat
         assert v[prep].max() < v[stroke].max()  # and slower than the stroke
 
 
