@@ -224,7 +224,7 @@ def bench_sync(seeds: tuple[int, ...] = tuple(range(10)), texts: tuple[str, ...]
         loop = ControlLoop(get_backend_factory("sim")(robot, record=False), rate, threaded=False,
                            on_tick=lambda t, q: goals.append(q.copy()))  # fmt: skip
         loop.start()
-        loop.play(traj).wait()
+        loop.play(traj, approach_within_rad=0.2).wait()  # as a live session starts an utterance
         loop.close()
         return np.array(goals)
 

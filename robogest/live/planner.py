@@ -31,6 +31,7 @@ import numpy as np
 from robogest.generators.base import Generator
 from robogest.motion.human_motion import HumanMotion
 from robogest.robot.config import RobotConfig
+from robogest.safety.limits import JointLimits
 from robogest.speech.stream import SpeechStream
 from robogest.trajectory import Trajectory
 
@@ -211,6 +212,7 @@ class StreamingPlanner:
         self.window_s = window_s
         self.feed = TrajectoryFeed(robot, fps)
         self.rest = np.asarray(robot.rest_q_rad, float)
+        self.limits = JointLimits.from_robot(robot)
         self.lo = robot.q_min_rad + 0.02
         self.hi = robot.q_max_rad - 0.02
         self._human = np.empty((0, 0, 4))  # (K, B, 4) human rotations behind the feed's frames: retarget changes only
@@ -264,13 +266,34 @@ class StreamingPlanner:
             for a, b in rests:  # exactly at rest where the generator rests (the silent-period hint)
                 pinned |= (t >= a) & (t <= b)
             q[pinned] = self.rest
-            q = np.clip(q, np.minimum(self.lo, self.rest), np.maximum(self.hi, self.rest))
+            q = self._feasible(np.clip(q, np.minimum(self.lo, self.rest), np.maximum(self.hi, self.rest)), first,
+                               pinned)  # fmt: skip
             n = feed.splice(first, q, self.blend_s, pinned=pinned)
             self._remember(motion.rotations, off, first, n_end)
             self.n_plans += 1
         if final:
             self._finish(n_end)
         return n
+
+    def _feasible(self, q: np.ndarray, first: int, pinned: np.ndarray) -> np.ndarray:
+        """``q (K, J)`` for frames ``first..`` made velocity- and acceleration-feasible from the frame before it, as
+        the batch safety layer's tracker does for a whole utterance. Without it the control loop's limiter
+        saturates on raw IK frames (measured on a 16 s paragraph: goals up to 62° from the plan, wrist-speed
+        correlation 0.51; with it 23° and 0.90, like the batch path's 5° and 0.99)."""
+        from robogest.errors import SafetyError
+        from robogest.safety.stages import track
+
+        feed = self.feed
+        if first == 0 or feed.n_frames < first:
+            return q
+        prev = feed.q_rad[first - 1]
+        step = prev - feed.q_rad[first - 2] if first >= 2 else np.zeros_like(prev)
+        try:
+            out = track(np.vstack([prev, q]), self.limits, 1.0 / feed.fps, prev, step0=step,
+                        rest_mask=np.r_[False, pinned])  # fmt: skip
+        except SafetyError:  # a continuation the tracker cannot take (e.g. after an underrun): the loop's limiter will
+            return q
+        return out[1:]
 
     def _remember(self, rot: np.ndarray, off: int, first: int, n_end: int) -> None:
         """Keep the human poses behind frames ``first..n_end-1`` (``rot`` starts at frame ``off``)."""

@@ -236,11 +236,13 @@ def track(
     margin_rad: float = SafetyConfig.margin_rad,
     rest_mask: np.ndarray | None = None,
     settle: bool = False,
+    step0: np.ndarray | None = None,
 ) -> np.ndarray:
     """Follow ``targets`` so that position, velocity and acceleration limits all hold at once.
 
-    Output frame 0 is ``q0`` (the robot is assumed still there); each later frame takes the step that
-    best follows the target subject to ``|d| ≤ v_max·dt``, ``|Δd| ≤ a_max·dt²`` and the position band
+    Output frame 0 is ``q0`` (the robot is assumed still there, or moving by ``step0`` per frame); each later
+    frame takes the step that best follows the target subject to ``|d| ≤ v_max·dt``, ``|Δd| ≤ a_max·dt²`` and
+    the position band
     ``[q_min + margin, q_max − margin]`` widened to include rest. Braking is discrete: the step towards an
     edge is at most :func:`_brake_step` of the distance, which guarantees that decelerating by ``A`` per
     frame stops inside the band. If that bound held at ``(p, s)``, then ``s − A`` (or 0) satisfies it at
@@ -262,6 +264,8 @@ def track(
         exactly onto the target and stays.
     settle : bool
         Extend the output past ``T`` until it is at ``limits.rest_q_rad`` with zero velocity.
+    step0 : ndarray [shape=(J,)], radians per frame, optional
+        The step that led to ``q0`` (a continuation, e.g. of a streamed plan); clipped to the velocity limit.
 
     Returns
     -------
@@ -289,10 +293,11 @@ def track(
         w[np.asarray(rest_mask, dtype=bool)] = 0.0
     out = np.empty((max(n_t, 1), n_j))
     out[0] = q0
-    p, s = _run_tracker(x[1:], w[1:], q0.copy(), np.zeros(n_j), lo, hi, vstep, astep, out[1:])
+    s0 = np.zeros(n_j) if step0 is None else np.clip(np.asarray(step0, dtype=float), -vstep, vstep)
+    p, s = _run_tracker(x[1:], w[1:], q0.copy(), s0.copy(), lo, hi, vstep, astep, out[1:])
     if settle:
         out = _settle(out, p, s, limits, dt_s, lo, hi, vstep, astep)
-    check_limits(out, limits, dt_s, np.minimum(lo, q0), np.maximum(hi, q0))
+    check_limits(out, limits, dt_s, np.minimum(lo, q0), np.maximum(hi, q0), None if step0 is None else s0)
     return out
 
 
@@ -323,21 +328,25 @@ def _settle(
     return np.vstack([out, ext[: done[0] + 1]])
 
 
-def check_limits(q: np.ndarray, limits: JointLimits, dt_s: float, lo: np.ndarray, hi: np.ndarray) -> None:
+def check_limits(
+    q: np.ndarray, limits: JointLimits, dt_s: float, lo: np.ndarray, hi: np.ndarray, d0: np.ndarray | None = None
+) -> None:
     """Raise :class:`SafetyError` unless ``q`` is finite, within ``[lo, hi]``, ``|d| ≤ V`` and ``|Δd| ≤ A`` (+ ``TOL``).
 
     Parameters
     ----------
     q : ndarray [shape=(T, J)], radians
-        Starting at standstill (the first step counts against ``A``).
+        Starting at standstill (the first step counts against ``A``), or moving by ``d0`` per frame.
     limits : JointLimits
     dt_s : float, seconds
     lo, hi : ndarray [shape=(J,)], radians
+    d0 : ndarray [shape=(J,)], radians per frame, optional
+        The step that led to ``q[0]``.
     """
     if not np.all(np.isfinite(q)):  # NaN compares False with every bound below
         raise SafetyError("safety: command trajectory holds NaN or infinite angles (internal check)")
     pos_bad = np.any((q < lo - TOL) | (q > hi + TOL) | (q < limits.q_min_rad - TOL) | (q > limits.q_max_rad + TOL))
-    d = np.diff(q, axis=0, prepend=q[:1])
+    d = np.diff(q, axis=0, prepend=q[:1] if d0 is None else q[:1] - d0)
     vel_bad = np.any(np.abs(d) > limits.v_max_rad_s * dt_s + TOL)
     acc_bad = np.any(np.abs(np.diff(d, axis=0)) > limits.a_max_rad_s2 * dt_s * dt_s + TOL)
     if pos_bad or vel_bad or acc_bad:

@@ -304,3 +304,17 @@ def test_the_internal_check_refuses_nan_angles():
     q[3] = np.nan  # compares False with every bound: it used to pass
     with pytest.raises(SafetyError, match="NaN"):
         check_limits(q, lim, 0.02, lim.q_min_rad, lim.q_max_rad)
+
+
+def test_track_continues_a_motion_already_under_way():
+    """With ``step0`` the first step is limited against the motion that led to ``q0`` (a streamed continuation),
+    not against standing still."""
+    lim = limits1(v=10.0, a=100.0)
+    dt = 0.02
+    step = 0.15  # rad per frame: 7.5 rad/s, moving up
+    targets = np.full((30, 1), -1.0)  # a target behind: it must brake first
+    out = track(targets, lim, dt, np.zeros(1), step0=np.array([step]))
+    assert out[1, 0] - out[0, 0] == pytest.approx(step - 100.0 * dt * dt)  # one frame of full braking
+    check_limits(out, lim, dt, lim.q_min_rad, lim.q_max_rad, d0=np.array([step]))
+    with pytest.raises(SafetyError, match="acceleration"):  # the same frames read as starting still break it
+        check_limits(out, lim, dt, lim.q_min_rad, lim.q_max_rad)
