@@ -166,12 +166,12 @@ def main() -> None:
     import torch
 
     from robogest.data.features import expmap_to_motion, motion_to_expmap
-    from robogest.speech.transcript import read_stressed_vowels
     from robogest.generators import make_generator
     from robogest.generators.learned import train_model
     from robogest.learn.checkpoint import load_checkpoint
     from robogest.learn.trainer import TrainConfig
     from robogest.motion import load_motion
+    from robogest.speech.transcript import read_stressed_vowels
 
     torch.set_num_threads(args.threads)
     take = Path(args.take)
