@@ -105,7 +105,7 @@ def bench_session() -> None:
         first_goal, audio_start, underruns, plan_s, feed_s = [], [], [], [], []
         for _ in range(8):
             with robot.stream(sp.sr) as s:
-                _feed_realtime(s, pcm, sp.sr, feed_s)
+                _feed_realtime(s, pcm, sp.sr, feed_s=feed_s)
             s.wait()
             t0 = s.handle.event("first_chunk")["t_monotonic_s"]
             first_goal.append(s.handle.event("first_goal")["t_monotonic_s"] - t0)
