@@ -18,10 +18,11 @@ Results older than the look-ahead ``lookahead_s`` (L) are *committed*: never rev
 Newer ones are provisional. A consumer that plays speech delayed by L therefore always knows the
 beats of the next L seconds, which is what lets strokes land on beats.
 
-L was chosen by measurement (``benchmarks/bench_live.py``: stroke sync of the robot's command trajectory,
-streamed vs offline on the same paragraph, three seeds): at 0.15 s the streamed strokes are as well timed as
-the offline ones (z 1.78 vs 1.45; 1.51 at 0.2 s), the first motion follows the first chunk within L + one
-update (0.1 s), and the streamed beats still match the batch ones (``tests/speech/test_stream.py``).
+L = 0.15 s: the first motion follows the first chunk by L (measured p95 163 ms, ``benchmarks/bench_live.py``),
+and the streamed beats still match the batch ones (``tests/speech/test_stream.py``). It was first chosen on a
+wrist-peak measure that did not validate on real motion; on the validated stroke-sync measure a streamed
+utterance keeps the batch timing on one test clip and loses it on another (README, Known limits), and
+L = 0.25 s recovers part of it (4 seeds), at 0.1 s more latency.
 """
 
 from __future__ import annotations
