@@ -123,7 +123,8 @@ class OnlineLimiter:
         self._traj = ruckig.Trajectory(n)
         self._inp = self._input(ruckig.ControlInterface.Position)
         self._brake_inp = self._input(ruckig.ControlInterface.Velocity)
-        self._rest_inp = self._input(ruckig.ControlInterface.Position)
+        self._still_inp = self._input(ruckig.ControlInterface.Position)  # durations to standing still somewhere
+        self._still_traj = ruckig.Trajectory(n)
         self.stop_within_s = None if stop_within_s is None else float(stop_within_s)
         if self.stop_within_s is not None:
             if rest is None or not (np.isfinite(self.stop_within_s) and self.stop_within_s > 2 * self.period_s):
@@ -152,16 +153,12 @@ class OnlineLimiter:
         """Per joint ``(J,)`` radians: the farthest a joint can get from a standstill and be still again within
         ``t_s`` seconds (bisection on ruckig's time-optimal durations)."""
         lo, hi = np.zeros(self.n_joints), self.q_max_rad - self.q_min_rad
-        inp = self._input(ruckig.ControlInterface.Position)
-        inp.current_position = [0.0] * self.n_joints
-        inp.current_velocity = [0.0] * self.n_joints
-        inp.current_acceleration = [0.0] * self.n_joints
-        traj = ruckig.Trajectory(self.n_joints)
+        z = np.zeros(self.n_joints)
+        still = MotionState(z, z, z)
         for _ in range(40):
             mid = 0.5 * (lo + hi)
-            inp.target_position = mid.tolist()
-            self._otg.calculate(inp, traj)
-            fits = np.asarray(traj.independent_min_durations) <= t_s
+            d = self._min_durations_s(still, mid)
+            fits = d <= t_s if d is not None else np.zeros(self.n_joints, bool)
             lo, hi = np.where(fits, mid, lo), np.where(fits, hi, mid)
         return lo
 
@@ -211,15 +208,10 @@ class OnlineLimiter:
         """Shortest time, seconds, from the present state to standing still on ``target_q_rad`` ``(J,)`` within every
         limit: the time-optimal bound (each joint on its own, the slowest counts) that no follower can beat, e.g.
         for judging how fast an interrupt reaches rest."""
-        s = self.state
-        inp = self._input(ruckig.ControlInterface.Position)
-        inp.current_position, inp.current_velocity = s.q_rad.tolist(), s.v_rad_s.tolist()
-        inp.current_acceleration = s.a_rad_s2.tolist()
-        inp.target_position = self.clamp_target(np.asarray(target_q_rad, dtype=float)).tolist()
-        traj = ruckig.Trajectory(self.n_joints)
-        if self._otg.calculate(inp, traj) not in _OK:
+        d = self._min_durations_s(self.state, self.clamp_target(np.asarray(target_q_rad, dtype=float)))
+        if d is None:
             raise InputError("OnlineLimiter: ruckig found no motion to the target from the present state")
-        return float(traj.duration)
+        return float(d.max())
 
     # --- one tick ----------------------------------------------------------------------------------
     def propose(self, target_q_rad: np.ndarray, target_v_rad_s: np.ndarray | None = None) -> np.ndarray:
@@ -306,22 +298,23 @@ class OnlineLimiter:
         finite = all(np.all(np.isfinite(x)) for x in (out.q_rad, out.v_rad_s, out.a_rad_s2))
         return out if finite else None
 
-    def _rest_time_s(self, s: MotionState) -> np.ndarray | None:
-        """Per joint ``(J,)``: shortest time from ``s`` to standing still at rest, seconds (None if not computable)."""
-        inp = self._rest_inp
+    def _min_durations_s(self, s: MotionState, target_q_rad: np.ndarray) -> np.ndarray | None:
+        """Per joint ``(J,)``: shortest time from ``s`` to standing still on ``target_q_rad``, seconds (each joint on
+        its own, every limit kept); None if ruckig cannot compute it."""
+        inp = self._still_inp
         inp.current_position, inp.current_velocity, inp.current_acceleration = _lists(s)
-        inp.target_position = self.rest_q_rad.tolist()
+        inp.target_position = np.asarray(target_q_rad, dtype=float).tolist()
         try:
-            res = self._otg.calculate(inp, self._traj)
+            res = self._otg.calculate(inp, self._still_traj)
         except (RuntimeError, ValueError):
             return None
-        return np.asarray(self._traj.independent_min_durations) if res in _OK else None
+        return np.asarray(self._still_traj.independent_min_durations) if res in _OK else None
 
     def _keep_rest_within_reach(self, s: MotionState, cand: MotionState) -> MotionState:
         """Joints whose candidate could not be at rest within ``stop_within_s`` take the time-optimal step towards
         rest instead. From a state within reach that step stays within reach (the rest of a time-optimal motion
         is time-optimal), so an interrupt is at rest within ``stop_within_s`` from every goal (induction)."""
-        t = self._rest_time_s(cand)
+        t = self._min_durations_s(cand, self.rest_q_rad)
         far = np.ones(self.n_joints, bool) if t is None else t > self.stop_within_s + 1e-9
         if not far.any():
             return cand
