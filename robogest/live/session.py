@@ -612,9 +612,7 @@ class StreamUtterance:
         a = self._pcm(chunk)
         parsed = []
         for w in words or ():
-            word = parse_word(w)
-            if word.start_s < self._last_word_s:
-                raise InputError(f"stream: word {w!r} starts before the previous word; give words in time order")
+            word = parse_word(w, self._last_word_s)
             self._last_word_s = word.start_s
             parsed.append(word)
         max_s = self.speech.config.max_duration_s

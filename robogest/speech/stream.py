@@ -72,22 +72,30 @@ def pcm_to_float(chunk: np.ndarray | bytes, dtype: str = "int16") -> np.ndarray:
     return a
 
 
-def parse_word(w: tuple[str, float, float]) -> Word:
-    """A streamed word ``(text, start_s, end_s)`` (seconds from the utterance start) as a :class:`Word`.
+def parse_word(w: tuple[str, float, float] | Word, after_s: float = -math.inf) -> Word:
+    """A streamed word ``(text, start_s, end_s)`` (seconds from the utterance start) as a :class:`Word` (a Word is
+    taken as it is), starting no earlier than ``after_s`` (the previous word's start).
 
     Raises
     ------
     InputError
-        Not a (text, start, end) triple, no text left after normalising, or not ``0 <= start_s < end_s``.
+        Not a (text, start, end) triple, no text left after normalising, not ``0 <= start_s < end_s``, or out of
+        time order.
     """
-    try:
-        text, t0, t1 = str(w[0]), float(w[1]), float(w[2])
-    except (TypeError, ValueError, IndexError):
-        raise InputError(f"stream: a word must be (text, start_s, end_s), got {w!r}") from None
-    token = normalize_word(text).replace(" ", "")
-    if not token or not (math.isfinite(t0) and math.isfinite(t1)) or t1 <= t0 or t0 < 0:
-        raise InputError(f"stream: word {w!r} needs text and 0 <= start_s < end_s")
-    return Word(token, t0, t1, count_syllables(token))
+    if isinstance(w, Word):
+        word = w
+    else:
+        try:
+            text, t0, t1 = str(w[0]), float(w[1]), float(w[2])
+        except (TypeError, ValueError, IndexError):
+            raise InputError(f"stream: a word must be (text, start_s, end_s), got {w!r}") from None
+        token = normalize_word(text).replace(" ", "")
+        if not token or not (math.isfinite(t0) and math.isfinite(t1)) or t1 <= t0 or t0 < 0:
+            raise InputError(f"stream: word {w!r} needs text and 0 <= start_s < end_s")
+        word = Word(token, t0, t1, count_syllables(token))
+    if word.start_s < after_s:
+        raise InputError(f"stream: word {w!r} starts before the previous word; give words in time order")
+    return word
 
 
 class SpeechStream:
@@ -197,10 +205,7 @@ class SpeechStream:
         return False
 
     def _add_word(self, w: tuple[str, float, float] | Word) -> None:
-        word = w if isinstance(w, Word) else parse_word(w)
-        if self.words and word.start_s < self.words[-1].start_s:
-            raise InputError(f"stream: word {w!r} starts before the previous word; give words in time order")
-        self.words.append(word)
+        self.words.append(parse_word(w, self.words[-1].start_s if self.words else -math.inf))
 
     def close(self) -> None:
         """The utterance is complete: flush the resampler and commit everything."""
