@@ -122,6 +122,11 @@ class TrajectoryFeed:
             self._q = np.concatenate([old[:ks], new])
             return int(new.shape[0])
 
+    def truncate(self, n_frames: int) -> None:
+        """Drop the frames from ``n_frames`` on, except those the player has already used (and the first)."""
+        with self._lock:
+            self._q = self._q[: max(n_frames, self.first_open, 1)]
+
     def close(self) -> None:
         self.closed = True
 
@@ -316,8 +321,7 @@ class StreamingPlanner:
         feed = self.feed
         if feed.closed:
             return
-        with feed._lock:  # drop provisional frames planned past the end of the speech
-            feed._q = feed._q[: max(n_end, feed.first_open, 1)]
+        feed.truncate(n_end)  # provisional frames planned past the end of the speech
         last = feed.q_rad[-1]
         if np.abs(last - self.rest).max() > 1e-9:
             n = max(2, math.ceil(0.6 * feed.fps))
