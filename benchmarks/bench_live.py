@@ -144,12 +144,45 @@ def bench_session() -> None:
     print(f"{'stream underruns (ticks holding for a late plan), late ticks':<58} {sum(underruns)} / {late}")
 
 
+def _play_stepped(
+    robot,
+    traj,
+    *,
+    stop_within_s: float | None = None,
+    interrupt_at_s: float | None = None,
+    approach_within_rad: float = 0.0,
+    rate: float = 100.0,
+) -> tuple[np.ndarray, float, float]:
+    """Play ``traj`` on the simulator through a stepped control loop (loop time: no scheduling noise).
+
+    Returns the goals sent ``(N, J)``; with ``interrupt_at_s``, also the loop seconds from the interrupt to rest
+    and the time-optimal bound from the state interrupted (else 0, 0).
+    """
+    from robogest.backends import get_backend_factory
+    from robogest.backends.control import ControlLoop
+
+    goals: list[np.ndarray] = []
+    loop = ControlLoop(get_backend_factory("sim")(robot, record=False), rate, threaded=False,
+                       stop_within_s=stop_within_s, on_tick=lambda t, q: goals.append(q.copy()))  # fmt: skip
+    loop.start()
+    h = loop.play(traj, approach_within_rad=approach_within_rad)
+    took = bound = 0.0
+    if interrupt_at_s is None:
+        h.wait()
+    else:
+        loop.run_for(interrupt_at_s)
+        bound = loop.limiter.time_to_reach_s(loop.rest_q_rad)
+        n0 = loop.stats.n_ticks
+        loop.interrupt().wait()
+        took = (loop.stats.n_ticks - n0) / rate
+    loop.close()
+    return np.array(goals), took, bound
+
+
 def bench_interrupt(stop_within_s: float = 0.45) -> None:
     """Interrupts at 26 instants of a paragraph (stepped simulation: loop time, no scheduling noise), with and
     without the stop envelope: time to rest, its ratio to the time-optimal bound from the state interrupted, and
     what the envelope costs the gestures (RMS distance of the goals from rest, same paragraph played whole)."""
-    from robogest.backends import get_backend_factory
-    from robogest.backends.control import ControlLoop
     from robogest.generators import make_generator
     from robogest.pipeline import motion_to_trajectory
     from robogest.robot import find_robot
@@ -158,30 +191,12 @@ def bench_interrupt(stop_within_s: float = 0.45) -> None:
     cfg = find_robot("humanoid_xl430")
     sp = synthesize(PARAGRAPH)
     traj, _, _ = motion_to_trajectory(make_generator("rhythm").generate(sp, seed=0), cfg, silent_spans=sp.silent_spans)
-    rate = 100.0
-
-    def run(stop: float | None, at_s: float | None) -> tuple[float, float, np.ndarray]:
-        goals: list[np.ndarray] = []
-        loop = ControlLoop(get_backend_factory("sim")(cfg, record=False), rate, threaded=False, stop_within_s=stop,
-                           on_tick=lambda t, q: goals.append(q.copy()))  # fmt: skip
-        loop.start()
-        h = loop.play(traj)
-        if at_s is None:
-            h.wait()
-            loop.close()
-            return 0.0, 0.0, np.array(goals)
-        loop.run_for(at_s)
-        bound = loop.limiter.time_to_reach_s(loop.rest_q_rad)
-        n0 = loop.stats.n_ticks
-        loop.interrupt().wait()
-        took = (loop.stats.n_ticks - n0) / rate
-        loop.close()
-        return took, bound, np.array(goals)
 
     instants = np.arange(0.5, 10.0, 0.37)
     for stop in (None, stop_within_s):
-        took, bound = np.array([run(stop, float(t))[:2] for t in instants]).T
-        spread = np.sqrt(np.mean((run(stop, None)[2] - cfg.rest_q_rad) ** 2))
+        runs = [_play_stepped(cfg, traj, stop_within_s=stop, interrupt_at_s=float(t)) for t in instants]
+        took, bound = np.array([r[1:] for r in runs]).T
+        spread = np.sqrt(np.mean((_play_stepped(cfg, traj, stop_within_s=stop)[0] - cfg.rest_q_rad) ** 2))
         what = "no stop envelope" if stop is None else f"stop_within_s = {stop}"
         row(f"interrupt -> at rest, loop time, 26 instants ({what})", list(took),
             f"max {took.max() * 1000:.0f} ms; / time-optimal bound: max {np.max(took / bound):.3f}; "
@@ -201,8 +216,6 @@ def bench_sync(seeds: tuple[int, ...] = tuple(range(10)), texts: tuple[str, ...]
     vs streamed on the same audio: mean, worst seed, and the paired difference with its standard error."""
     import mujoco
 
-    from robogest.backends import get_backend_factory
-    from robogest.backends.control import ControlLoop
     from robogest.eval.beats import stroke_sync, stroke_sync_events
     from robogest.generators import make_generator
     from robogest.live.planner import StreamingPlanner
@@ -219,14 +232,8 @@ def bench_sync(seeds: tuple[int, ...] = tuple(range(10)), texts: tuple[str, ...]
     rate = 100.0
 
     def played(traj) -> np.ndarray:
-        """The goals a stepped control loop sends for ``traj`` (the online limiter included), ``(N, J)``."""
-        goals: list[np.ndarray] = []
-        loop = ControlLoop(get_backend_factory("sim")(robot, record=False), rate, threaded=False,
-                           on_tick=lambda t, q: goals.append(q.copy()))  # fmt: skip
-        loop.start()
-        loop.play(traj, approach_within_rad=0.2).wait()  # as a live session starts an utterance
-        loop.close()
-        return np.array(goals)
+        """The goals ``(N, J)`` for ``traj``, started as a live session starts an utterance."""
+        return _play_stepped(robot, traj, approach_within_rad=0.2, rate=rate)[0]
 
     for text in texts:
         sp, stressed = synthesize_with_stress(text)
