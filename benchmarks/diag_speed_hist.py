@@ -1,9 +1,10 @@
 """Where does the default generator's wrist-speed histogram differ from the speaker's? (a diagnostic)
 
 Issue 13 asks for a wrist-speed histogram Hellinger distance of at most 0.3 to the shared BEAT2 speaker's;
-the default generator scores about 0.43 on the calibration half. This script looks at the **calibration
-half only** (BEAT2 0-32 s, built as ``bench_generalize.py`` builds it), speech frames, both wrists pooled,
-1 cm/s bins as the benchmark uses, and prints:
+the default generator scored about 0.43 on the calibration half with a steady drift (0.29 with
+``drift_loudness``). This script looks at the **calibration half only** (BEAT2 0-32 s, built as
+``bench_generalize.py`` builds it), speech frames, both wrists pooled, 1 cm/s bins as the benchmark uses,
+and prints:
 
 1. the two histograms over speed ranges, the mass each has there and each range's share of the squared
    Hellinger distance (``H² = ½ Σ (√p - √q)²``, so the shares add up to H²);
