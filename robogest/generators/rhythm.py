@@ -19,10 +19,11 @@ import re
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from robogest.errors import InputError
 from robogest.generators import lexicon as lx
-from robogest.generators.acoustic import AcousticBeats, acoustic_beats
+from robogest.generators.acoustic import HOP_S, AcousticBeats, acoustic_beats, band_loudness_db
 from robogest.generators.base import Generator, register_generator
 from robogest.generators.poses import DOF, HEAD_DOFS, N_DOF, READY, REST, dofs_to_rotations
 from robogest.generators.tags import align_words, parse_tags, sentences
@@ -36,7 +37,7 @@ class RhythmConfig:
     """Timing and style of the default generator (seconds, radians).
 
     The defaults were calibrated on the first half (0-32 s) of the BEAT2 sample (speaker "scott") only;
-    ``benchmarks/bench_generalize.py`` reports them on held-out speech (README, Evaluation): about 0.7x
+    ``benchmarks/bench_generalize.py`` reports them on held-out speech (README, Evaluation): about 0.77x
     the speaker's mean wrist speed and acceleration during speech on the calibration half.
 
     Attributes
@@ -84,11 +85,27 @@ class RhythmConfig:
         ``"auto"``, or ``"none"`` for idle breathing and the rest behaviour only.
     drift_m_s, drift_hz : float
         Drift of each wrist while speaking, between and under the gestures: a small circle at this speed
-        (m/s, times ``amount``; none with ``gestures="none"``) and frequency (radius about 10 cm). On the
-        calibration half, 0.3 m/s brought wrist speed from 0.42x to 0.7x the speaker's and the Hellinger
-        distance from 0.64 to about 0.43, at a cost in stroke-sync z (3.7 -> about 3.1, 10 seeds): the
-        drift shifts the strokes' speed peaks a little. 0.3 Hz kept more z (3.3) with 16 cm circles, 0.8 Hz
-        less (2.8).
+        (m/s, times ``amount``; at mid loudness with ``drift_loudness``; none with ``gestures="none"``) and
+        frequency (radius about 13 cm at 0.4 m/s). On the calibration half a steady 0.3 m/s brought wrist speed
+        from 0.42x to 0.7x the speaker's and the Hellinger distance from 0.64 to about 0.43, at a cost in
+        stroke-sync z (3.7 -> about 3.1, 10 seeds): the drift shifts the strokes' speed peaks a little. 0.3 Hz
+        kept more z (3.3) with 16 cm circles, 0.8 Hz less (2.8). Raised to 0.4 m/s with ``drift_loudness``.
+    drift_loudness : float
+        How much the drift's speed follows the voice, in [0, 1]: each wrist circles at ``drift_m_s * (1 - k +
+        2 k loud(t))``, ``loud`` the generator's band loudness (:func:`acoustic.band_loudness_db`) smoothed
+        over :data:`LOUDNESS_SMOOTH_S` and scaled to [0, 1] between its 20th and 95th percentile; 0 is a steady
+        circle. A speaker's hands are never still and move more as the voice rises, so the hands speed up and
+        slow down with the phrasing instead of piling the held frames at one speed (the steady circle put 73 %
+        of the speech frames at 20-45 cm/s against the speaker's 29 %, most of them holds, and too few at
+        45-130 cm/s; 45 % and 35 % of the squared Hellinger distance: ``benchmarks/diag_speed_hist.py``).
+        Calibrated with ``drift_m_s`` on the BEAT2 calibration half only (``bench_generalize.py
+        --calibration-only --no-robot --grid``, 10 seeds): at ``drift_m_s`` 0.3, k = 0 / 0.3 / 0.6 / 0.9 / 1
+        gave mean z 3.97 / 4.62 / 4.60 / 4.67 / 4.70 and Hellinger 0.43 / 0.39 / 0.36 / 0.36 / 0.37; with k =
+        0.6, ``drift_m_s`` 0.3 / 0.35 / 0.4 / 0.45 / 0.5 / 0.6 gave z 4.60 / 4.61 / 4.63 / 4.52 / 4.42 / 4.16,
+        Hellinger 0.36 / 0.32 / 0.29 / 0.28 / 0.27 / 0.26, speed 0.67-0.98x; at 0.4 m/s, k = 0 / 0.3 / 0.6 /
+        0.8 / 1 gave z 3.48 / 4.31 / 4.63 / 4.40 / 4.79, Hellinger 0.40 / 0.35 / 0.29 / 0.31 / 0.33.
+        Chosen: 0.4 m/s (highest z) and k = 0.6 (the lowest Hellinger; its z is within seed noise of k = 1).
+        Part of the z gain is that the drift's own speed rises in loud stretches, near stressed syllables.
     stroke_lead_s : float
         How far before its acoustic beat an arm stroke's wrist-speed peak is placed (preparations and
         relaxations, which also peak on beats, lead by the same amount). Gesture strokes precede the
@@ -131,14 +148,17 @@ class RhythmConfig:
     max_joint_accel_rad_s2: float | None = None
     semantic: str = "keywords"
     stroke_lead_s: float = 0.05
-    drift_m_s: float = 0.3
+    drift_m_s: float = 0.4
     drift_hz: float = 0.5
+    drift_loudness: float = 0.6
 
 
 #: The same unit is not used twice in a row within this many seconds.
 NO_REPEAT_S = 10.0
 #: Semantic units on one channel keep at least this far apart (seconds).
 SEMANTIC_SPACING_S = 1.0
+#: Gaussian smoothing (s) of the loudness the drift's speed follows: phrase-level rises, not each syllable.
+LOUDNESS_SMOOTH_S = 0.3
 
 
 @dataclass(frozen=True)
@@ -207,6 +227,8 @@ class RhythmGenerator(Generator):
             raise InputError(f"gestures must be 'auto' or 'none', got {c.gestures!r}")
         if c.semantic not in ("keywords", "embedding"):
             raise InputError(f"semantic must be 'keywords' or 'embedding', got {c.semantic!r}")
+        if not 0.0 <= c.drift_loudness <= 1.0:
+            raise InputError(f"drift_loudness must be within [0, 1], got {c.drift_loudness}")
         if not 0.0 <= c.stroke_lead_s <= 0.5:
             raise InputError(f"stroke_lead_s must be within [0, 0.5] s, got {c.stroke_lead_s}")
         self._meaning = None
@@ -568,14 +590,29 @@ class RhythmGenerator(Generator):
             inside = (t >= s0) & (t <= s1)
             ph = (t[inside] - s0) / (s1 - s0)
             dofs[inside, DOF["head_yaw"]] += amp * np.sin(2 * np.pi * hz * (t[inside] - s0)) * np.sin(np.pi * ph) ** 2
-        dofs += self._sway(t, rests, np.random.default_rng(seed + 7919))
+        dofs += self._sway(t, rests, np.random.default_rng(seed + 7919), self._loudness(speech, t))
         rot = dofs_to_rotations(dofs)
         root = np.tile([0.0, CANONICAL_PELVIS_HEIGHT_M, 0.0], (n, 1))
         return HumanMotion(fps=fps, rotations=rot, root_pos_m=root)
 
-    def _sway(self, t: np.ndarray, rests: list[tuple[float, float]], rng: np.random.Generator) -> np.ndarray:
+    @staticmethod
+    def _loudness(speech: Speech, t: np.ndarray) -> np.ndarray:
+        """The voice's loudness at ``t (T,)`` s, ``(T,)`` in [0, 1]: band loudness smoothed over
+        :data:`LOUDNESS_SMOOTH_S`, 0 at its 20th and 1 at its 95th percentile (zeros for too short audio)."""
+        db = band_loudness_db(speech.audio, speech.sr)
+        if db.size < 5:
+            return np.zeros(len(t))
+        db = gaussian_filter1d(db, LOUDNESS_SMOOTH_S / HOP_S)
+        lo, hi = np.percentile(db, 20), np.percentile(db, 95)
+        loud = np.clip((db - lo) / max(hi - lo, 1e-6), 0.0, 1.0)
+        return np.interp(t, np.arange(db.size) * HOP_S, loud)
+
+    def _sway(
+        self, t: np.ndarray, rests: list[tuple[float, float]], rng: np.random.Generator, loud: np.ndarray | None = None
+    ) -> np.ndarray:
         """Idle breathing/sway ``(T, D)`` while speaking: fades in over 0.4 s away from rest, and is
-        exactly zero inside rest windows and at both ends (the motion starts and ends at rest)."""
+        exactly zero inside rest windows and at both ends (the motion starts and ends at rest). ``loud (T,)``
+        in [0, 1] is the voice's loudness, which the wrist drift's speed follows (``drift_loudness``)."""
         end = t[-1] if len(t) else 0.0
         d = np.minimum(t, end - t)  # (T,) distance to the ends, s
         for r0, r1 in rests:
@@ -590,12 +627,16 @@ class RhythmGenerator(Generator):
         out[:, DOF["head_pitch"]] = 0.5 * a * np.sin(2 * np.pi * 0.31 * t + ph[2])
         out[:, DOF["head_yaw"]] = 0.8 * a * np.sin(2 * np.pi * 0.13 * t + ph[3])
         # The hands never freeze while speaking. Each wrist circles slowly (elbow up/down and arm out/in in
-        # quadrature, levers ~0.27 m and ~0.4 m): a circle has a steady speed, so this drift adds motion but
-        # no speed peaks of its own that could land off the beats.
+        # quadrature, levers ~0.27 m and ~0.4 m). At a steady angular rate a circle has a steady speed and no
+        # speed peaks of its own that could land off the beats; with drift_loudness the rate rises and falls
+        # with the voice's smoothed loudness, so what peaks it has lie in loud stretches.
         c = self.config
         w = 2 * np.pi * c.drift_hz
         r = 0.0 if c.gestures == "none" else c.drift_m_s * c.amount / w  # circle radius, m (scales with amount)
+        k_loud = c.drift_loudness if loud is not None else 0.0
+        rate = w * (1.0 - k_loud + 2.0 * k_loud * (loud if loud is not None else 0.0))  # (T,) or scalar, rad/s
+        theta = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))]) if k_loud else w * t
         for k, side in enumerate("lr"):
-            out[:, DOF[f"{side}_elbow"]] = r / 0.27 * np.sin(w * t + ph[4 + 2 * k])
-            out[:, DOF[f"{side}_abd"]] = r / 0.40 * np.cos(w * t + ph[4 + 2 * k])
+            out[:, DOF[f"{side}_elbow"]] = r / 0.27 * np.sin(theta + ph[4 + 2 * k])
+            out[:, DOF[f"{side}_abd"]] = r / 0.40 * np.cos(theta + ph[4 + 2 * k])
         return out * env[:, None]

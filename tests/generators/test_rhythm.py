@@ -110,6 +110,29 @@ def test_stroke_lead_out_of_range_is_input_error():
         RhythmGenerator(stroke_lead_s=-0.1)
 
 
+def test_drift_loudness_out_of_range_is_input_error():
+    from robogest.errors import InputError
+
+    with pytest.raises(InputError, match=r"drift_loudness must be within \[0, 1\], got 1.5"):
+        RhythmGenerator(drift_loudness=1.5)
+
+
+@pytest.mark.parametrize(("k", "lo", "hi"), [(0.0, 0.8, 1.25), (0.6, 2.5, 6.0)])
+def test_drift_speed_follows_the_voice_loudness(k, lo, hi):
+    """With no gestures planned the wrists move by the drift alone: steady without ``drift_loudness``, faster
+    while the voice is loud (syllables every 0.25 s in 1-4 s) than while it is quiet (5-7 s) with it
+    (full loudness gives 1 + k, none 1 - k times ``drift_m_s``: 4x for k = 0.6)."""
+    sp = build_speech(8.0, list(np.arange(1.0, 4.0, 0.25)), [])
+    g = RhythmGenerator(fps=50.0, gesture_rate=0.0, head_beat_prob=0.0, sway_rad=0.0, drift_loudness=k)
+    assert g.plan(sp) == []
+    m = g.generate(sp, seed=0)
+    v = wrist_speed_cm_s(m)
+    t = m.t_s[:-1]
+    loud, quiet = v[(t > 1.8) & (t < 3.5)].mean(), v[(t > 5.0) & (t < 7.0)].mean()
+    assert quiet > 5.0  # never still while speaking
+    assert lo < loud / quiet < hi, (loud, quiet)
+
+
 def test_preparation_leads_an_earlier_beat_and_is_slower_than_its_stroke():
     from robogest.generators.rhythm import GestureEvent
 
