@@ -143,6 +143,11 @@ class SafetyConfig:
     start_from_rest : bool
         With no ``q0`` given, assume the robot is at rest (True) or already at the first target frame (False,
         for simulation only: a real robot elsewhere would jump).
+    preview : bool
+        Fit the targets within the velocity and acceleration limits over the whole trajectory before tracking
+        (:func:`~robogest.safety.stages.fit_within_limits`), so moves too fast for the robot are centred on their
+        targets instead of falling behind them. False tracks the rate-limited targets causally, as a live
+        stream must.
     """
 
     margin_rad: float = 0.02
@@ -151,6 +156,7 @@ class SafetyConfig:
     rest_after_s: float = 1.0
     rest_leave_s: float = 0.4
     start_from_rest: bool = True
+    preview: bool = True
 
     def __post_init__(self) -> None:
         def finite(x: object) -> bool:

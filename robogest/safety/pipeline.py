@@ -13,6 +13,7 @@ from robogest.safety.stages import (
     TOL,
     clamp_positions,
     clamp_velocity,
+    fit_within_limits,
     long_silent_spans,
     silent_rest_targets,
     smooth,
@@ -20,6 +21,8 @@ from robogest.safety.stages import (
 )
 
 _CHANGED_RAD = 1e-6  # a stage "changed" a sample if it moved it by more than this
+#: Weight of a rest frame's error in the preview fit (1 elsewhere): the fit arrives at rest where the tracker must.
+REST_WEIGHT = 100.0
 
 
 @dataclass(eq=False)
@@ -43,9 +46,10 @@ class SafetyResult:
         Frames appended to bring the robot to rest and stop.
     clipped_fraction : float
         Fraction of input samples ``(frame, joint)`` that a limiting stage (position clamp, velocity clamp,
-        tracking outside rest targets) moved by more than 1e-6 rad.
+        preview fit and tracking outside rest targets) moved by more than 1e-6 rad.
     stage_changed_fraction : dict of str to float
-        The same per stage: ``"clamp"``, ``"smooth"``, ``"velocity"``, ``"track"``.
+        The same per stage: ``"clamp"``, ``"smooth"``, ``"velocity"`` (the rate limiter's change, reported even
+        when ``preview`` bypasses it), ``"track"`` (fit and tracking together).
     """
 
     q_rad: np.ndarray
@@ -86,9 +90,10 @@ def apply_safety(
 ) -> SafetyResult:
     """Turn a retargeted motion into commands that respect every joint limit and rest in long silences.
 
-    Stages, in order: position clamp with margin → Gaussian smoothing → velocity clamp → silent-rest targets →
-    :func:`~robogest.safety.stages.track` (velocity, acceleration and position limits at once, starting from
-    ``q0`` at standstill). Guarantees on ``q_rad`` (to 1e-9, rounding):
+    Stages, in order: position clamp with margin → Gaussian smoothing → velocity clamp (without ``preview``) →
+    silent-rest targets → with ``config.preview``, :func:`~robogest.safety.stages.fit_within_limits` (zero-lag
+    fit within the limits) → :func:`~robogest.safety.stages.track` (velocity, acceleration and position limits at
+    once, starting from ``q0`` at standstill). Guarantees on ``q_rad`` (to 1e-9, rounding):
 
     * ``q_rad[0] == q0`` exactly; every sample within ``[q_min, q_max]`` and within the margin band widened to
       include rest (and ``q0``, which is only ever left inwards);
@@ -161,9 +166,15 @@ def apply_safety(
             "move the robot inside its limits (or fix the limits) before commanding it"
         )
 
+    src = q_smooth if config.preview else q_vel  # the fit keeps the velocity limit itself, without lag
     targets, rest_target = silent_rest_targets(
-        q_vel, silent, limits.rest_q_rad, fps, config.rest_after_s, config.rest_leave_s
+        src, silent, limits.rest_q_rad, fps, config.rest_after_s, config.rest_leave_s
     )
+    if config.preview and n_t > 1:
+        # rest frames weigh more so the fit arrives there; the tracker still gets rest itself as their target
+        fit = fit_within_limits(targets, limits, dt, q0, margin_rad=config.margin_rad,
+                                weights=np.where(rest_target, REST_WEIGHT, 1.0))  # fmt: skip
+        targets = np.where(rest_target[:, None], targets, fit)
     out = track(targets, limits, dt, q0, margin_rad=config.margin_rad, rest_mask=rest_target, settle=True)
     n_out = out.shape[0]
     n_in_out = min(n_t, n_out)  # T == 0 still gives one frame (q0)
@@ -190,7 +201,7 @@ def apply_safety(
         c_clamp = changed(q_clamp[:n_in_out], q[:n_in_out])
         c_smooth = changed(q_smooth[:n_in_out], q_clamp[:n_in_out])
         c_vel = changed(q_vel[:n_in_out], q_smooth[:n_in_out])
-        c_track = changed(out[:n_in_out], q_vel[:n_in_out]) & ~rest_target[:n_in_out, None]
+        c_track = changed(out[:n_in_out], src[:n_in_out]) & ~rest_target[:n_in_out, None]
         stats = {
             "clamp": c_clamp.sum() / n_samples,
             "smooth": c_smooth.sum() / n_samples,

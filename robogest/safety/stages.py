@@ -140,6 +140,83 @@ def _brake_step(dist: np.ndarray, a_step: np.ndarray) -> np.ndarray:
     return (dist + 0.5 * a_step * m * m1) / m1
 
 
+def fit_within_limits(
+    targets: np.ndarray,
+    limits: JointLimits,
+    dt_s: float,
+    q0: np.ndarray,
+    *,
+    margin_rad: float = SafetyConfig.margin_rad,
+    weights: np.ndarray | None = None,
+) -> np.ndarray:
+    """The trajectory closest to ``targets`` (weighted least squares) that keeps the position band, velocity and
+    acceleration limits and starts still at ``q0``: the whole-trajectory counterpart of :func:`track`.
+
+    A causal follower can only react, so where a stroke is faster than the robot allows it falls behind and its
+    speed peak lands late (measured on the default generator's output for humanoid_xl430: 20-60 ms behind the
+    IK targets, wrist-speed correlation 0.64-0.83; README, Safety). Knowing the whole trajectory, this starts such
+    a move early and ends it late, centred on the target. One convex quadratic programme per joint (banded,
+    solved by the interior-point solver ``piqp``); the result is feasible only to the solver's tolerance, so it
+    is a *target* for :func:`track`, which makes every limit hold exactly.
+
+    Parameters
+    ----------
+    targets : ndarray [shape=(T, J)], radians
+        Frame 0 is ignored (it is ``q0``).
+    limits : JointLimits
+    dt_s : float, seconds
+    q0 : ndarray [shape=(J,)], radians
+        Start pose, standstill before it (as :func:`track` assumes).
+    margin_rad : float, radians
+    weights : ndarray [shape=(T,)], optional
+        Weight of each frame's squared error (e.g. higher on frames that must reach rest); default 1.
+
+    Returns
+    -------
+    ndarray [shape=(T, J)], radians
+        Frame 0 is ``q0``. A joint whose programme the solver does not solve keeps its targets (:func:`track`
+        then follows them causally, as it does without this stage).
+    """
+    import piqp
+    import scipy.sparse as sparse
+
+    x = _as_qt(targets, "targets")
+    q0 = np.asarray(q0, dtype=float)
+    n_t, n_j = x.shape
+    out = x.copy()
+    if n_t:
+        out[0] = q0
+    n = n_t - 1  # unknowns: frames 1..T-1
+    if n < 3:
+        return out
+    lo, hi = _tracking_band(limits, margin_rad)
+    vstep = limits.v_max_rad_s * dt_s
+    astep = limits.a_max_rad_s2 * dt_s * dt_s
+    w = np.ones(n) if weights is None else np.asarray(weights, dtype=float)[1:]
+    ones = np.ones(n)
+    d1 = sparse.diags([ones, -ones[1:]], [0, -1], shape=(n, n))  # row k: y[k+1] - y[k] (row 0: y[1], minus q0)
+    d2 = sparse.diags([ones, -2 * ones[1:], ones[2:]], [0, -1, -2], shape=(n, n))  # second differences
+    g = sparse.vstack([d1, d2], format="csc")
+    p = sparse.diags(w, format="csc")
+    for j in range(n_j):
+        c = q0[j]
+        # the rows that involve q0 (and the standstill before it) move it to the bounds
+        g_lo = np.r_[np.full(n, -vstep[j]), np.full(n, -astep[j])]
+        g_hi = -g_lo
+        g_lo[0] += c
+        g_hi[0] += c
+        g_lo[n] += c  # y[1] - 2 q0 + q0
+        g_hi[n] += c
+        g_lo[n + 1] -= c  # y[2] - 2 y[1] + q0
+        g_hi[n + 1] -= c
+        solver = piqp.SparseSolver()
+        solver.setup(p, -w * x[1:, j], None, None, g, g_lo, g_hi,
+                     np.full(n, min(lo[j], c)), np.full(n, max(hi[j], c)))  # fmt: skip
+        if solver.solve() == piqp.PIQP_SOLVED and np.all(np.isfinite(solver.result.x)):
+            out[1:, j] = solver.result.x
+    return out
+
+
 def _tracking_band(limits: JointLimits, margin_rad: float) -> tuple[np.ndarray, np.ndarray]:
     """Margin band widened to include the rest pose (rest is declared safe even if it sits in the margin)."""
     lo, hi = limits.band(margin_rad)

@@ -20,7 +20,7 @@ from robogest.safety import (
     smooth,
     track,
 )
-from robogest.safety.stages import _brake_step, check_limits
+from robogest.safety.stages import _brake_step, check_limits, fit_within_limits
 
 
 def limits1(q_min=-20.0, q_max=20.0, v=10.0, a=1.0, rest=0.0, n=1) -> JointLimits:
@@ -318,3 +318,49 @@ def test_track_continues_a_motion_already_under_way():
     check_limits(out, lim, dt, lim.q_min_rad, lim.q_max_rad, d0=np.array([step]))
     with pytest.raises(SafetyError, match="acceleration"):  # the same frames read as starting still break it
         check_limits(out, lim, dt, lim.q_min_rad, lim.q_max_rad)
+
+
+def _lag_frames(a: np.ndarray, b: np.ndarray, max_lag: int = 15) -> int:
+    """Frames by which ``b (T,)`` trails ``a (T,)`` (the cross-correlation peak of their speeds)."""
+    sa, sb = np.abs(np.diff(a)), np.abs(np.diff(b))
+    sa, sb = sa - sa.mean(), sb - sb.mean()
+    n = sa.size
+    lags = range(-max_lag, max_lag + 1)
+    c = [np.dot(sa[max(0, -k) : n - max(0, k)], sb[max(0, k) : n - max(0, -k)]) for k in lags]
+    return list(lags)[int(np.argmax(c))]
+
+
+def test_fit_within_limits_centres_moves_too_fast_for_the_robot():
+    """Strokes faster than the limits: the causal path falls behind, the preview fit does not, and both keep
+    every limit (the fit to the solver's tolerance; apply_safety's tracker then exactly)."""
+    fps, dt = 50.0, 0.02
+    lim = limits1(q_min=-2.0, q_max=2.0, v=3.0, a=40.0)
+    t = np.arange(400) * dt
+    u = np.clip((t % 1.0 - 0.5) / 0.1, 0.0, 1.0)  # a 0.1 s minimum-jerk stroke every second, alternating sides
+    x = (0.6 * np.where(np.floor(t) % 2 == 0, 1, -1) * u**3 * (10 - 15 * u + 6 * u * u))[:, None]
+    x[:, 0] += np.where(np.floor(t) % 2 == 0, -0.3, 0.3)
+    x[:, 0] -= x[0, 0]  # peak speed 11 rad/s > 3 rad/s
+    fit = fit_within_limits(x, lim, dt, np.zeros(1))
+    assert fit[0, 0] == 0.0
+    d = np.diff(fit[:, 0], prepend=0.0)
+    assert np.abs(d).max() <= 3.0 * dt + 1e-6 and np.abs(np.diff(d)).max() <= 40.0 * dt * dt + 1e-6
+    assert _lag_frames(x[:, 0], fit[:, 0]) == 0
+    causal = apply_safety(x, lim, fps, config=SafetyConfig(preview=False)).q_rad[: len(x), 0]
+    preview = apply_safety(x, lim, fps).q_rad[: len(x), 0]
+    assert _lag_frames(x[:, 0], causal) >= 2
+    assert _lag_frames(x[:, 0], preview) == 0
+    for q in (causal, preview):
+        check_limits(q[:, None], lim, dt, np.full(1, -2.0), np.full(1, 2.0))
+    # the fit is the closest feasible motion: nearer the targets than the causal path
+    assert np.sqrt(np.mean((preview - x[:, 0]) ** 2)) < 0.7 * np.sqrt(np.mean((causal - x[:, 0]) ** 2))
+
+
+def test_fit_within_limits_keeps_feasible_targets_and_weights_rest():
+    dt = 0.02
+    lim = limits1(v=10.0, a=100.0, n=2)
+    t = np.arange(200) * dt
+    x = np.stack([0.3 * (1 - np.cos(2 * np.pi * 0.5 * t)), np.zeros_like(t)], axis=1)  # within every limit
+    np.testing.assert_allclose(fit_within_limits(x, lim, dt, np.zeros(2)), x, atol=1e-6)
+    # too short to fit anything: returned as given, frame 0 set to q0
+    short = np.ones((3, 2))
+    np.testing.assert_array_equal(fit_within_limits(short, lim, dt, np.zeros(2))[0], np.zeros(2))
