@@ -25,6 +25,7 @@ ORDER = [
     "bench_s2ag.py",
     "bench_rhythmic.py",
     "bench_generalize.py",
+    "bench_meaning.py",
     "bench_live.py",
 ]
 
