@@ -86,26 +86,29 @@ class RhythmConfig:
     drift_m_s, drift_hz : float
         Drift of each wrist while speaking, between and under the gestures: a small circle at this speed
         (m/s, times ``amount``; at mid loudness with ``drift_loudness``; none with ``gestures="none"``) and
-        frequency (radius about 13 cm at 0.4 m/s). On the calibration half a steady 0.3 m/s brought wrist speed
+        frequency (radius about 10 cm at 0.3 m/s). On the calibration half a steady 0.3 m/s brought wrist speed
         from 0.42x to 0.7x the speaker's and the Hellinger distance from 0.64 to about 0.43, at a cost in
         stroke-sync z (3.7 -> about 3.1, 10 seeds): the drift shifts the strokes' speed peaks a little. 0.3 Hz
-        kept more z (3.3) with 16 cm circles, 0.8 Hz less (2.8). Raised to 0.4 m/s with ``drift_loudness``.
+        kept more z (3.3) with 16 cm circles, 0.8 Hz less (2.8).
     drift_loudness : float
-        How much the drift's speed follows the voice, in [0, 1]: each wrist circles at ``drift_m_s * (1 - k +
-        2 k loud(t))``, ``loud`` the generator's band loudness (:func:`acoustic.band_loudness_db`) smoothed
-        over :data:`LOUDNESS_SMOOTH_S` and scaled to [0, 1] between its 20th and 95th percentile; 0 is a steady
-        circle. A speaker's hands are never still and move more as the voice rises, so the hands speed up and
-        slow down with the phrasing instead of piling the held frames at one speed (the steady circle put 73 %
-        of the speech frames at 20-45 cm/s against the speaker's 29 %, most of them holds, and too few at
-        45-130 cm/s; 45 % and 35 % of the squared Hellinger distance: ``benchmarks/diag_speed_hist.py``).
-        Calibrated with ``drift_m_s`` on the BEAT2 calibration half only (``bench_generalize.py
-        --calibration-only --no-robot --grid``, 10 seeds): at ``drift_m_s`` 0.3, k = 0 / 0.3 / 0.6 / 0.9 / 1
-        gave mean z 3.97 / 4.62 / 4.60 / 4.67 / 4.70 and Hellinger 0.43 / 0.39 / 0.36 / 0.36 / 0.37; with k =
-        0.6, ``drift_m_s`` 0.3 / 0.35 / 0.4 / 0.45 / 0.5 / 0.6 gave z 4.60 / 4.61 / 4.63 / 4.52 / 4.42 / 4.16,
-        Hellinger 0.36 / 0.32 / 0.29 / 0.28 / 0.27 / 0.26, speed 0.67-0.98x; at 0.4 m/s, k = 0 / 0.3 / 0.6 /
-        0.8 / 1 gave z 3.48 / 4.31 / 4.63 / 4.40 / 4.79, Hellinger 0.40 / 0.35 / 0.29 / 0.31 / 0.33.
-        Chosen: 0.4 m/s (highest z) and k = 0.6 (the lowest Hellinger; its z is within seed noise of k = 1).
-        Part of the z gain is that the drift's own speed rises in loud stretches, near stressed syllables.
+        How much the drift follows the voice, in [0, 1]: each wrist's circle has ``(1 - k + 2 k loud(t))`` times
+        its radius, so its speed, ``loud`` the generator's band loudness (:func:`acoustic.band_loudness_db`)
+        smoothed over :data:`LOUDNESS_SMOOTH_S` and scaled to [0, 1] between its 20th and 95th percentile
+        (digital silence left out); 0 is a steady circle. A speaker's hands are never still and move more as
+        the voice rises, so the hands speed up and slow down with the phrasing instead of piling the held
+        frames at one speed (the steady circle put 73 % of the speech frames at 20-45 cm/s against the
+        speaker's 29 %, most of them holds, and too few at 45-130 cm/s; 45 % and 35 % of the squared Hellinger
+        distance: ``benchmarks/diag_speed_hist.py``). The radius follows the voice rather than the circle's
+        angular rate: a rate must be integrated from the utterance's start, so each replan of a live stream
+        that heard more moved the circle's phase under the frames playing (streamed z with 1 s of audio
+        ahead fell from 2.9 to 1.1 on the questions clip of ``bench_live``, 3 seeds). Calibrated on the BEAT2
+        calibration half only (``bench_generalize.py --calibration-only --no-robot --grid``, 10 seeds): at
+        0.4 m/s, k = 0 / 0.3 / 0.6 / 1 gave mean z 3.48 / 3.91 / 3.76 / 3.27 and Hellinger 0.40 / 0.35 / 0.30 /
+        0.31; with k = 0.6, ``drift_m_s`` 0.25 / 0.3 / 0.35 / 0.4 gave z 4.47 / 4.32 / 3.94 / 3.76, Hellinger
+        0.39 / 0.36 / 0.32 / 0.30, speed 0.64 / 0.70 / 0.75 / 0.81x. Chosen: k = 0.6 and 0.3 m/s, the fastest
+        drift that keeps z at 4 or more (stroke timing first). (An angular rate that followed the voice had
+        scored z 4.63 and Hellinger 0.29 at 0.4 m/s: part of that was the drift's own speed peaking in loud
+        stretches, near stressed syllables.)
     stroke_lead_s : float
         How far before its acoustic beat an arm stroke's wrist-speed peak is placed (preparations and
         relaxations, which also peak on beats, lead by the same amount). Gesture strokes precede the
@@ -148,7 +151,7 @@ class RhythmConfig:
     max_joint_accel_rad_s2: float | None = None
     semantic: str = "keywords"
     stroke_lead_s: float = 0.05
-    drift_m_s: float = 0.4
+    drift_m_s: float = 0.3
     drift_hz: float = 0.5
     drift_loudness: float = 0.6
 
@@ -159,6 +162,8 @@ NO_REPEAT_S = 10.0
 SEMANTIC_SPACING_S = 1.0
 #: Gaussian smoothing (s) of the loudness the drift's speed follows: phrase-level rises, not each syllable.
 LOUDNESS_SMOOTH_S = 0.3
+#: Band loudness (dB) below this is digital silence (a stream's zero padding), not part of the voice's range.
+DIGITAL_SILENCE_DB = -100.0
 
 
 @dataclass(frozen=True)
@@ -590,7 +595,7 @@ class RhythmGenerator(Generator):
             inside = (t >= s0) & (t <= s1)
             ph = (t[inside] - s0) / (s1 - s0)
             dofs[inside, DOF["head_yaw"]] += amp * np.sin(2 * np.pi * hz * (t[inside] - s0)) * np.sin(np.pi * ph) ** 2
-        dofs += self._sway(t, rests, np.random.default_rng(seed + 7919), self._loudness(speech, t))
+        dofs += self._sway(t, rests, np.random.default_rng(seed + 7919), self._loudness(speech, t), speech.offset_s)
         rot = dofs_to_rotations(dofs)
         root = np.tile([0.0, CANONICAL_PELVIS_HEIGHT_M, 0.0], (n, 1))
         return HumanMotion(fps=fps, rotations=rot, root_pos_m=root)
@@ -598,21 +603,30 @@ class RhythmGenerator(Generator):
     @staticmethod
     def _loudness(speech: Speech, t: np.ndarray) -> np.ndarray:
         """The voice's loudness at ``t (T,)`` s, ``(T,)`` in [0, 1]: band loudness smoothed over
-        :data:`LOUDNESS_SMOOTH_S`, 0 at its 20th and 1 at its 95th percentile (zeros for too short audio)."""
+        :data:`LOUDNESS_SMOOTH_S`, 0 at its 20th and 1 at its 95th percentile over the frames that are not digital
+        silence (those count as quiet; zeros for too short audio)."""
         db = band_loudness_db(speech.audio, speech.sr)
-        if db.size < 5:
+        heard = db > DIGITAL_SILENCE_DB  # not digital silence (e.g. the zeros a stream pads unheard speech with)
+        if heard.sum() < 5:
             return np.zeros(len(t))
-        db = gaussian_filter1d(db, LOUDNESS_SMOOTH_S / HOP_S)
-        lo, hi = np.percentile(db, 20), np.percentile(db, 95)
+        db = gaussian_filter1d(np.where(heard, db, np.percentile(db[heard], 20)), LOUDNESS_SMOOTH_S / HOP_S)
+        lo, hi = np.percentile(db[heard], 20), np.percentile(db[heard], 95)
         loud = np.clip((db - lo) / max(hi - lo, 1e-6), 0.0, 1.0)
         return np.interp(t, np.arange(db.size) * HOP_S, loud)
 
     def _sway(
-        self, t: np.ndarray, rests: list[tuple[float, float]], rng: np.random.Generator, loud: np.ndarray | None = None
+        self,
+        t: np.ndarray,
+        rests: list[tuple[float, float]],
+        rng: np.random.Generator,
+        loud: np.ndarray | None = None,
+        t0_s: float = 0.0,
     ) -> np.ndarray:
         """Idle breathing/sway ``(T, D)`` while speaking: fades in over 0.4 s away from rest, and is
         exactly zero inside rest windows and at both ends (the motion starts and ends at rest). ``loud (T,)``
-        in [0, 1] is the voice's loudness, which the wrist drift's speed follows (``drift_loudness``)."""
+        in [0, 1] is the voice's loudness, which the wrist drift's speed follows (``drift_loudness``). Phases run
+        on the utterance's clock (``t + t0_s``, ``t0_s`` = :attr:`Speech.offset_s`), so a streaming planner that
+        generates from a later start gets the same sway where the two overlap."""
         end = t[-1] if len(t) else 0.0
         d = np.minimum(t, end - t)  # (T,) distance to the ends, s
         for r0, r1 in rests:
@@ -622,21 +636,24 @@ class RhythmGenerator(Generator):
         ph = rng.uniform(0, 2 * np.pi, 8)
         a = self.config.sway_rad
         out = np.zeros((len(t), N_DOF))
-        out[:, DOF["spine_pitch"]] = 0.6 * a * np.sin(2 * np.pi * 0.23 * t + ph[0])
-        out[:, DOF["spine_yaw"]] = a * np.sin(2 * np.pi * 0.17 * t + ph[1])
-        out[:, DOF["head_pitch"]] = 0.5 * a * np.sin(2 * np.pi * 0.31 * t + ph[2])
-        out[:, DOF["head_yaw"]] = 0.8 * a * np.sin(2 * np.pi * 0.13 * t + ph[3])
+        ta = t + t0_s  # (T,) s on the utterance's clock
+        out[:, DOF["spine_pitch"]] = 0.6 * a * np.sin(2 * np.pi * 0.23 * ta + ph[0])
+        out[:, DOF["spine_yaw"]] = a * np.sin(2 * np.pi * 0.17 * ta + ph[1])
+        out[:, DOF["head_pitch"]] = 0.5 * a * np.sin(2 * np.pi * 0.31 * ta + ph[2])
+        out[:, DOF["head_yaw"]] = 0.8 * a * np.sin(2 * np.pi * 0.13 * ta + ph[3])
         # The hands never freeze while speaking. Each wrist circles slowly (elbow up/down and arm out/in in
         # quadrature, levers ~0.27 m and ~0.4 m). At a steady angular rate a circle has a steady speed and no
-        # speed peaks of its own that could land off the beats; with drift_loudness the rate rises and falls
-        # with the voice's smoothed loudness, so what peaks it has lie in loud stretches.
+        # speed peaks of its own that could land off the beats; with drift_loudness its radius (so its speed)
+        # rises and falls with the voice's smoothed loudness, so what peaks it has lie in loud stretches. The
+        # radius, not the angular rate, follows the voice: a rate would have to be integrated from the start,
+        # so every replan of a stream that heard more would shift the circle's phase under the frames playing.
         c = self.config
         w = 2 * np.pi * c.drift_hz
         r = 0.0 if c.gestures == "none" else c.drift_m_s * c.amount / w  # circle radius, m (scales with amount)
         k_loud = c.drift_loudness if loud is not None else 0.0
-        rate = w * (1.0 - k_loud + 2.0 * k_loud * (loud if loud is not None else 0.0))  # (T,) or scalar, rad/s
-        theta = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))]) if k_loud else w * t
+        size = 1.0 - k_loud + 2.0 * k_loud * (loud if loud is not None else 0.0)  # (T,) or scalar
+        theta = w * ta
         for k, side in enumerate("lr"):
-            out[:, DOF[f"{side}_elbow"]] = r / 0.27 * np.sin(theta + ph[4 + 2 * k])
-            out[:, DOF[f"{side}_abd"]] = r / 0.40 * np.cos(theta + ph[4 + 2 * k])
+            out[:, DOF[f"{side}_elbow"]] = r / 0.27 * size * np.sin(theta + ph[4 + 2 * k])
+            out[:, DOF[f"{side}_abd"]] = r / 0.40 * size * np.cos(theta + ph[4 + 2 * k])
         return out * env[:, None]

@@ -100,6 +100,9 @@ class Speech:
         File path or ``"tts:<voice>"``; used in messages and saved trajectories.
     text : str
         The transcript as given, "" if none.
+    offset_s : float
+        Where this speech starts within the utterance it was cut from (:meth:`crop`), seconds; 0 for a whole
+        one. Motion that runs on its own clock (idle sway) uses it so that a cut and the whole agree.
     """
 
     audio: np.ndarray
@@ -113,6 +116,7 @@ class Speech:
     source: str = ""
     text: str = ""
     audio_path: Path | None = field(default=None)
+    offset_s: float = 0.0
 
     @property
     def duration_s(self) -> float:
@@ -156,4 +160,5 @@ class Speech:
             features=feats,
             source=self.source,
             text=" ".join(w.text for w in words) if self.words else "",
+            offset_s=self.offset_s + t0,
         )
