@@ -193,6 +193,10 @@ class StreamingPlanner:
     window_s : float
         Longest stretch of speech one plan generates over, seconds, when the speech has no pause in which the
         generator rests (then it starts ``window_s / 2`` before the frames being played).
+    preview : bool
+        Fit each plan's new frames within the limits before tracking them
+        (:func:`~robogest.safety.stages.fit_within_limits`, as the batch path does), so a stroke too fast for
+        the robot is centred on its plan rather than behind it; the fit sees only the frames planned so far.
     """
 
     def __init__(
@@ -206,8 +210,10 @@ class StreamingPlanner:
         blend_s: float = 0.25,
         ahead_s: float = 0.6,
         window_s: float = 8.0,
+        preview: bool = True,
     ) -> None:
         self.robot = robot
+        self.preview = preview
         self.generator = generator
         self.ik = retargeter
         self.stream = stream
@@ -286,16 +292,22 @@ class StreamingPlanner:
         saturates on raw IK frames (measured on a 16 s paragraph: goals up to 62° from the plan, wrist-speed
         correlation 0.51; with it 23° and 0.90, like the batch path's 5° and 0.99)."""
         from robogest.errors import SafetyError
-        from robogest.safety.stages import track
+        from robogest.safety.pipeline import REST_WEIGHT
+        from robogest.safety.stages import fit_within_limits, track
 
         feed = self.feed
         if first == 0 or feed.n_frames < first:
             return q
         prev = feed.q_rad[first - 1]
         step = prev - feed.q_rad[first - 2] if first >= 2 else np.zeros_like(prev)
+        rest = np.r_[False, pinned]
+        x = np.vstack([prev, q])
+        if self.preview:  # the frames planned so far, centred on their targets as the batch path does
+            fit = fit_within_limits(x, self.limits, 1.0 / feed.fps, prev, step0=step,
+                                    weights=np.where(rest, REST_WEIGHT, 1.0))  # fmt: skip
+            x = np.where(rest[:, None], x, fit)
         try:
-            out = track(np.vstack([prev, q]), self.limits, 1.0 / feed.fps, prev, step0=step,
-                        rest_mask=np.r_[False, pinned])  # fmt: skip
+            out = track(x, self.limits, 1.0 / feed.fps, prev, step0=step, rest_mask=rest)
         except SafetyError:  # a continuation the tracker cannot take (e.g. after an underrun): the loop's limiter will
             return q
         return out[1:]

@@ -148,6 +148,7 @@ def fit_within_limits(
     *,
     margin_rad: float = SafetyConfig.margin_rad,
     weights: np.ndarray | None = None,
+    step0: np.ndarray | None = None,
 ) -> np.ndarray:
     """The trajectory closest to ``targets`` (weighted least squares) that keeps the position band, velocity and
     acceleration limits and starts still at ``q0``: the whole-trajectory counterpart of :func:`track`.
@@ -170,6 +171,8 @@ def fit_within_limits(
     margin_rad : float, radians
     weights : ndarray [shape=(T,)], optional
         Weight of each frame's squared error (e.g. higher on frames that must reach rest); default 1.
+    step0 : ndarray [shape=(J,)], radians per frame, optional
+        The step that led to ``q0`` (a continuation, as in :func:`track`); clipped to the velocity limit.
 
     Returns
     -------
@@ -193,6 +196,7 @@ def fit_within_limits(
     vstep = limits.v_max_rad_s * dt_s
     astep = limits.a_max_rad_s2 * dt_s * dt_s
     w = np.ones(n) if weights is None else np.asarray(weights, dtype=float)[1:]
+    s0 = np.zeros(n_j) if step0 is None else np.clip(np.asarray(step0, dtype=float), -vstep, vstep)
     ones = np.ones(n)
     d1 = sparse.diags([ones, -ones[1:]], [0, -1], shape=(n, n))  # row k: y[k+1] - y[k] (row 0: y[1], minus q0)
     d2 = sparse.diags([ones, -2 * ones[1:], ones[2:]], [0, -1, -2], shape=(n, n))  # second differences
@@ -205,8 +209,8 @@ def fit_within_limits(
         g_hi = -g_lo
         g_lo[0] += c
         g_hi[0] += c
-        g_lo[n] += c  # y[1] - 2 q0 + q0
-        g_hi[n] += c
+        g_lo[n] += c + s0[j]  # y[1] - 2 q0 + (q0 - step0)
+        g_hi[n] += c + s0[j]
         g_lo[n + 1] -= c  # y[2] - 2 y[1] + q0
         g_hi[n + 1] -= c
         solver = piqp.SparseSolver()
