@@ -364,3 +364,16 @@ def test_fit_within_limits_keeps_feasible_targets_and_weights_rest():
     # too short to fit anything: returned as given, frame 0 set to q0
     short = np.ones((3, 2))
     np.testing.assert_array_equal(fit_within_limits(short, lim, dt, np.zeros(2))[0], np.zeros(2))
+
+
+def test_fit_within_limits_continues_a_motion_under_way():
+    """With ``step0`` (a streamed continuation) the first step changes from it by at most the acceleration limit."""
+    dt = 0.02
+    lim = limits1(v=3.0, a=40.0)
+    step0 = np.array([0.05])  # 2.5 rad/s, moving up
+    x = np.zeros((30, 1))  # the new plan says: be at 0 now
+    fit = fit_within_limits(x, lim, dt, np.zeros(1), step0=step0)
+    d = np.diff(fit[:, 0], prepend=-step0[0])
+    assert abs(d[1] - step0[0]) <= 40.0 * dt * dt + 1e-9  # it brakes, no instant stop
+    assert np.abs(np.diff(d)).max() <= 40.0 * dt * dt + 1e-6 and np.abs(d).max() <= 3.0 * dt + 1e-6
+    assert fit[1, 0] > 0.0 and abs(fit[-1, 0]) < 1e-3  # overshoots while braking, then comes back
