@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from robogest.speech.stream import DEFAULT_LOOKAHEAD_S
+
 ROOT = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
 TEXT = "Hello there! It is really nice to meet you today."
@@ -135,8 +137,8 @@ def bench_session() -> None:
     )
     row("batch say(text), warm: call -> first goal", say_lat)
     row("batch say(text), warm: call -> audio start", play_lat)
-    row("streamed (L = 0.15 s): first chunk -> first goal", first_goal, "target <= 300 ms p95")
-    row("streamed: first chunk -> audio start", audio_start, "(L = 0.15 s behind the audio as it arrives)")
+    row(f"streamed (L = {DEFAULT_LOOKAHEAD_S} s): first chunk -> first goal", first_goal, "target <= 300 ms p95")
+    row("streamed: first chunk -> audio start", audio_start, f"(L = {DEFAULT_LOOKAHEAD_S} s behind the audio)")
     row("streamed: one feed() call (the caller's thread)", feed_s)
     row("streamed: one plan (the stream's thread)", plan_s)
     row(f"interrupt() mid-utterance -> at rest (stop_within_s = {robot.stop_within_s})", rest,

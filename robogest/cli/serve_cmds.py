@@ -14,7 +14,7 @@ SERVE_EPILOG = """protocol (JSON text frames; binary frames are PCM of the open 
   <- {"type": "accepted", "utterance": N}   {"type": "event", "utterance": N, "event": "first_goal", ...}
   <- {"type": "error", "message": "..."}    (malformed messages never stop the session)
 
-Streamed speech uses the default `rhythm` generator with a look-ahead of 0.15 s; learned generators
+Streamed speech uses the default `rhythm` generator with a look-ahead of 0.25 s; learned generators
 (--generator with --checkpoint) are batch-only: they serve "say" messages only. Speech audio is played
 through sounddevice (pip install 'robogest[audio]') when an output device exists; otherwise the events
 carry the time each stretch of audio should start. Ctrl-C or SIGTERM: the robot glides to rest, torque off.

@@ -18,11 +18,11 @@ Results older than the look-ahead ``lookahead_s`` (L) are *committed*: never rev
 Newer ones are provisional. A consumer that plays speech delayed by L therefore always knows the
 beats of the next L seconds, which is what lets strokes land on beats.
 
-L = 0.15 s: the first motion follows the first chunk by L (measured p95 163 ms, ``benchmarks/bench_live.py``),
-and the streamed beats still match the batch ones (``tests/speech/test_stream.py``). It was first chosen on a
-wrist-peak measure that did not validate on real motion; on the validated stroke-sync measure a streamed
-utterance keeps the batch timing on one test clip and loses it on another (README, Known limits), and
-L = 0.25 s recovers part of it (4 seeds), at 0.1 s more latency.
+L = 0.25 s, the most issue 16 allows, chosen by measurement (``benchmarks/bench_live.py``): the first motion
+follows the first chunk by L (p95 163 ms at 0.15 s, so about 0.26 s here; target 0.3 s), and stroke timing
+needs the planner to hear ahead of the player: a stroke's preparation starts well before its beat. Streamed
+in real time, the questions clip's stroke-sync z is -0.53 at 0.15 s, 0.82 at 0.25 s and 2.09 at 0.5 s of audio
+ahead, against 2.08 offline (10 seeds); a voice agent that delivers audio at 2x real time gets 1.75-2.27.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from robogest.speech.transcript import count_syllables, normalize_word
 from robogest.speech.types import Speech, Word
 
 #: Look-ahead L, seconds: how far the front-end's committed results trail the newest audio.
-DEFAULT_LOOKAHEAD_S = 0.15
+DEFAULT_LOOKAHEAD_S = 0.25
 #: Onsets and features within this of a window edge are not trusted (analysis windows, peak picking).
 _EDGE_S = 0.12
 
