@@ -338,5 +338,4 @@ if __name__ == "__main__":
     bench_serve_ready()
     bench_session()
     bench_interrupt()
-    bench_sync()
-    bench_sync_foresight()
+    bench_sync()  # bench_sync_foresight() is a diagnostic (README, Known limits): run it by hand
