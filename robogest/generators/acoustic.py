@@ -63,6 +63,7 @@ def acoustic_beats(
     min_gap_s: float = 0.2,
     min_rise_db: float = 4.0,
     smooth_s: float = 0.015,
+    loudness_db: np.ndarray | None = None,
 ) -> AcousticBeats:
     """Stressable syllable onsets of an utterance (see the module docstring).
 
@@ -78,6 +79,8 @@ def acoustic_beats(
         A rise must lift the band loudness by this much over ±50 ms.
     smooth_s : float
         Gaussian smoothing of the loudness track, seconds.
+    loudness_db : ndarray [shape=(F,)], dB, optional
+        :func:`band_loudness_db` of ``audio`` when the caller already has it (it is most of the cost).
 
     Returns
     -------
@@ -85,7 +88,7 @@ def acoustic_beats(
         Empty for silence or audio shorter than one window. Works on a partial utterance too (beats in
         its last 50 ms are not final yet).
     """
-    db = band_loudness_db(audio, sr)
+    db = band_loudness_db(audio, sr) if loudness_db is None else loudness_db
     if db.size < 5:
         return AcousticBeats(np.zeros(0), np.zeros(0))
     db = gaussian_filter1d(db, smooth_s / HOP_S)

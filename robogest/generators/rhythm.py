@@ -254,9 +254,10 @@ class RhythmGenerator(Generator):
                 out.append((t0, t1))
         return out
 
-    def beats(self, speech: Speech) -> AcousticBeats:
-        """Where strokes may land: :func:`acoustic.acoustic_beats` of the speech, outside silent periods."""
-        return acoustic_beats(speech.audio, speech.sr, tuple(speech.silent_spans))
+    def beats(self, speech: Speech, loudness_db: np.ndarray | None = None) -> AcousticBeats:
+        """Where strokes may land: :func:`acoustic.acoustic_beats` of the speech, outside silent periods
+        (``loudness_db``: its :func:`acoustic.band_loudness_db`, if already computed)."""
+        return acoustic_beats(speech.audio, speech.sr, tuple(speech.silent_spans), loudness_db=loudness_db)
 
     def plan(self, speech: Speech, seed: int = 0, acoustic: AcousticBeats | None = None) -> list[GestureEvent]:
         """Choose arm and head events (time, unit, amplitude) on acoustic beats; deterministic for a seed.
@@ -585,7 +586,8 @@ class RhythmGenerator(Generator):
         n = speech.n_frames if fps == speech.fps else round(speech.duration_s * fps)
         t = np.arange(n) / fps  # (T,)
         rests = self.rest_windows(speech)
-        ab = self.beats(speech)
+        db = band_loudness_db(speech.audio, speech.sr)  # (F,) the beats and the drift both follow it
+        ab = self.beats(speech, db)
         events = self.plan(speech, seed, ab)
         beats = ab.t_s
         dofs = self._arm_track(events, rests, speech.duration_s, beats)[0].sample(t)  # (T, D)
@@ -595,17 +597,17 @@ class RhythmGenerator(Generator):
             inside = (t >= s0) & (t <= s1)
             ph = (t[inside] - s0) / (s1 - s0)
             dofs[inside, DOF["head_yaw"]] += amp * np.sin(2 * np.pi * hz * (t[inside] - s0)) * np.sin(np.pi * ph) ** 2
-        dofs += self._sway(t, rests, np.random.default_rng(seed + 7919), self._loudness(speech, t), speech.offset_s)
+        dofs += self._sway(t, rests, np.random.default_rng(seed + 7919), self._loudness(db, t), speech.offset_s)
         rot = dofs_to_rotations(dofs)
         root = np.tile([0.0, CANONICAL_PELVIS_HEIGHT_M, 0.0], (n, 1))
         return HumanMotion(fps=fps, rotations=rot, root_pos_m=root)
 
     @staticmethod
-    def _loudness(speech: Speech, t: np.ndarray) -> np.ndarray:
-        """The voice's loudness at ``t (T,)`` s, ``(T,)`` in [0, 1]: band loudness smoothed over
-        :data:`LOUDNESS_SMOOTH_S`, 0 at its 20th and 1 at its 95th percentile over the frames that are not digital
-        silence (those count as quiet; zeros for too short audio)."""
-        db = band_loudness_db(speech.audio, speech.sr)
+    def _loudness(db: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """The voice's loudness at ``t (T,)`` s, ``(T,)`` in [0, 1], from its band loudness ``db (F,)``
+        (:func:`acoustic.band_loudness_db`): smoothed over :data:`LOUDNESS_SMOOTH_S`, 0 at its 20th and 1 at its
+        95th percentile over the frames that are not digital silence (those count as quiet; zeros for too short
+        audio)."""
         heard = db > DIGITAL_SILENCE_DB  # not digital silence (e.g. the zeros a stream pads unheard speech with)
         if heard.sum() < 5:
             return np.zeros(len(t))
@@ -619,7 +621,7 @@ class RhythmGenerator(Generator):
         t: np.ndarray,
         rests: list[tuple[float, float]],
         rng: np.random.Generator,
-        loud: np.ndarray | None = None,
+        loud: np.ndarray,
         t0_s: float = 0.0,
     ) -> np.ndarray:
         """Idle breathing/sway ``(T, D)`` while speaking: fades in over 0.4 s away from rest, and is
@@ -650,8 +652,7 @@ class RhythmGenerator(Generator):
         c = self.config
         w = 2 * np.pi * c.drift_hz
         r = 0.0 if c.gestures == "none" else c.drift_m_s * c.amount / w  # circle radius, m (scales with amount)
-        k_loud = c.drift_loudness if loud is not None else 0.0
-        size = 1.0 - k_loud + 2.0 * k_loud * (loud if loud is not None else 0.0)  # (T,) or scalar
+        size = 1.0 - c.drift_loudness + 2.0 * c.drift_loudness * loud  # (T,) radius scale
         theta = w * ta
         for k, side in enumerate("lr"):
             out[:, DOF[f"{side}_elbow"]] = r / 0.27 * size * np.sin(theta + ph[4 + 2 * k])
