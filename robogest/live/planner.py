@@ -292,7 +292,6 @@ class StreamingPlanner:
         saturates on raw IK frames (measured on a 16 s paragraph: goals up to 62° from the plan, wrist-speed
         correlation 0.51; with it 23° and 0.90, like the batch path's 5° and 0.99)."""
         from robogest.errors import SafetyError
-        from robogest.safety.pipeline import REST_WEIGHT
         from robogest.safety.stages import fit_within_limits, track
 
         feed = self.feed
@@ -303,9 +302,7 @@ class StreamingPlanner:
         rest = np.r_[False, pinned]
         x = np.vstack([prev, q])
         if self.preview:  # the frames planned so far, centred on their targets as the batch path does
-            fit = fit_within_limits(x, self.limits, 1.0 / feed.fps, prev, step0=step,
-                                    weights=np.where(rest, REST_WEIGHT, 1.0))  # fmt: skip
-            x = np.where(rest[:, None], x, fit)
+            x = fit_within_limits(x, self.limits, 1.0 / feed.fps, prev, step0=step, rest_mask=rest)
         try:
             out = track(x, self.limits, 1.0 / feed.fps, prev, step0=step, rest_mask=rest)
         except SafetyError:  # a continuation the tracker cannot take (e.g. after an underrun): the loop's limiter will

@@ -21,8 +21,6 @@ from robogest.safety.stages import (
 )
 
 _CHANGED_RAD = 1e-6  # a stage "changed" a sample if it moved it by more than this
-#: Weight of a rest frame's error in the preview fit (1 elsewhere): the fit arrives at rest where the tracker must.
-REST_WEIGHT = 100.0
 
 
 @dataclass(eq=False)
@@ -171,10 +169,7 @@ def apply_safety(
         src, silent, limits.rest_q_rad, fps, config.rest_after_s, config.rest_leave_s
     )
     if config.preview and n_t > 1:
-        # rest frames weigh more so the fit arrives there; the tracker still gets rest itself as their target
-        fit = fit_within_limits(targets, limits, dt, q0, margin_rad=config.margin_rad,
-                                weights=np.where(rest_target, REST_WEIGHT, 1.0))  # fmt: skip
-        targets = np.where(rest_target[:, None], targets, fit)
+        targets = fit_within_limits(targets, limits, dt, q0, margin_rad=config.margin_rad, rest_mask=rest_target)
     out = track(targets, limits, dt, q0, margin_rad=config.margin_rad, rest_mask=rest_target, settle=True)
     n_out = out.shape[0]
     n_in_out = min(n_t, n_out)  # T == 0 still gives one frame (q0)

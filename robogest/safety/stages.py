@@ -21,6 +21,9 @@ from robogest.safety.limits import JointLimits, SafetyConfig, opencv_sigma
 
 #: Slack for comparing constraint values after floating-point arithmetic (radians).
 TOL = 1e-9
+#: Weight of a rest frame's error in :func:`fit_within_limits` (1 elsewhere): the fit arrives at rest where the
+#: tracker must.
+REST_WEIGHT = 100.0
 
 
 def _as_qt(q: np.ndarray, name: str = "q") -> np.ndarray:
@@ -147,7 +150,7 @@ def fit_within_limits(
     q0: np.ndarray,
     *,
     margin_rad: float = SafetyConfig.margin_rad,
-    weights: np.ndarray | None = None,
+    rest_mask: np.ndarray | None = None,
     step0: np.ndarray | None = None,
 ) -> np.ndarray:
     """The trajectory closest to ``targets`` (weighted least squares) that keeps the position band, velocity and
@@ -169,16 +172,17 @@ def fit_within_limits(
     q0 : ndarray [shape=(J,)], radians
         Start pose, standstill before it (as :func:`track` assumes).
     margin_rad : float, radians
-    weights : ndarray [shape=(T,)], optional
-        Weight of each frame's squared error (e.g. higher on frames that must reach rest); default 1.
+    rest_mask : ndarray [shape=(T,)], bool, optional
+        Frames whose target is rest (as for :func:`track`): their error weighs :data:`REST_WEIGHT` times more,
+        so the fit arrives there, and they are returned as their targets, for :func:`track` to brake onto.
     step0 : ndarray [shape=(J,)], radians per frame, optional
         The step that led to ``q0`` (a continuation, as in :func:`track`); clipped to the velocity limit.
 
     Returns
     -------
     ndarray [shape=(T, J)], radians
-        Frame 0 is ``q0``. A joint whose programme the solver does not solve keeps its targets (:func:`track`
-        then follows them causally, as it does without this stage).
+        Frame 0 is ``q0`` and rest frames are their targets. A joint whose programme the solver does not solve
+        keeps its targets (:func:`track` then follows them causally, as it does without this stage).
     """
     import piqp
     import scipy.sparse as sparse
@@ -186,16 +190,17 @@ def fit_within_limits(
     x = _as_qt(targets, "targets")
     q0 = np.asarray(q0, dtype=float)
     n_t, n_j = x.shape
+    rest = np.zeros(n_t, bool) if rest_mask is None else np.asarray(rest_mask, dtype=bool)
     out = x.copy()
     if n_t:
         out[0] = q0
     n = n_t - 1  # unknowns: frames 1..T-1
     if n < 3:
-        return out
+        return np.where(rest[:, None], x, out)
     lo, hi = _tracking_band(limits, margin_rad)
     vstep = limits.v_max_rad_s * dt_s
     astep = limits.a_max_rad_s2 * dt_s * dt_s
-    w = np.ones(n) if weights is None else np.asarray(weights, dtype=float)[1:]
+    w = np.where(rest[1:], REST_WEIGHT, 1.0)
     s0 = np.zeros(n_j) if step0 is None else np.clip(np.asarray(step0, dtype=float), -vstep, vstep)
     ones = np.ones(n)
     d1 = sparse.diags([ones, -ones[1:]], [0, -1], shape=(n, n))  # row k: y[k+1] - y[k] (row 0: y[1], minus q0)
@@ -218,7 +223,7 @@ def fit_within_limits(
                      np.full(n, min(lo[j], c)), np.full(n, max(hi[j], c)))  # fmt: skip
         if solver.solve() == piqp.PIQP_SOLVED and np.all(np.isfinite(solver.result.x)):
             out[1:, j] = solver.result.x
-    return out
+    return np.where(rest[:, None], x, out)
 
 
 def _tracking_band(limits: JointLimits, margin_rad: float) -> tuple[np.ndarray, np.ndarray]:

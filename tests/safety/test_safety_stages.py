@@ -364,6 +364,13 @@ def test_fit_within_limits_keeps_feasible_targets_and_weights_rest():
     # too short to fit anything: returned as given, frame 0 set to q0
     short = np.ones((3, 2))
     np.testing.assert_array_equal(fit_within_limits(short, lim, dt, np.zeros(2))[0], np.zeros(2))
+    # rest frames come back as their targets (a jump to rest the fit alone could not make), for track to brake onto
+    jump = x.copy()
+    rest = t >= 3.0
+    jump[rest] = 0.0
+    fit = fit_within_limits(jump, limits1(v=1.0, a=10.0, n=2), dt, np.zeros(2), rest_mask=rest)
+    np.testing.assert_array_equal(fit[rest], jump[rest])
+    assert np.abs(np.diff(fit[~rest, 0])).max() <= 1.0 * dt + 1e-6
 
 
 def test_fit_within_limits_continues_a_motion_under_way():
