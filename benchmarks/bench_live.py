@@ -217,8 +217,7 @@ SYNC_TEXTS = (
 
 def _sync_setup():
     """Robot, IK, generator and a scorer ``z_of(goals, speech, events)`` for the sync benchmarks."""
-    import mujoco
-
+    from robogest.backends.mujoco_sim import wrist_site_positions
     from robogest.eval.beats import stroke_sync
     from robogest.generators import make_generator
     from robogest.retarget import DirectionIK
@@ -226,16 +225,10 @@ def _sync_setup():
 
     robot = find_robot("humanoid_xl430")
     ik, gen = DirectionIK(robot), make_generator("rhythm")
-    sites = [mujoco.mj_name2id(ik.model, mujoco.mjtObj.mjOBJ_SITE, n) for n in ("l_wrist_site", "r_wrist_site")]
 
     def z_of(q: np.ndarray, sp, events) -> float:
         """Stroke-sync z of the goals ``q (N, J)`` played at 100 Hz (wrist sites by forward kinematics)."""
-        pos = np.empty((len(q), 2, 3))
-        for k, qk in enumerate(q):
-            ik.data.qpos[ik.qadr] = qk
-            mujoco.mj_kinematics(ik.model, ik.data)
-            pos[k] = ik.data.site_xpos[sites]
-        return stroke_sync(pos, 100.0, events, sp.silent_spans)["z"]
+        return stroke_sync(wrist_site_positions(robot, q), 100.0, events, sp.silent_spans)["z"]
 
     return robot, ik, gen, z_of
 
