@@ -5,7 +5,9 @@ the voiced band (vowel onsets, Rhythmic Gesticulator §4.2.1 uses onsets too). T
 deliberately not the evaluation's: it looks at the loudness of the 300-3000 Hz band (10 ms hop, 30 ms
 window), smoothed, and takes local maxima of its rate of rise that lift the band by at least
 ``min_rise_db`` to a level well above the quiet frames, at least ``min_gap_s`` apart. It never inserts
-pseudo-beats: a stretch without a rise gets no stroke (the generator holds instead).
+pseudo-beats: a stretch without a rise gets no stroke (the generator holds instead). The quiet and loud levels
+are the voice's: digital silence is left out of them, so a live stream's zero padding, or a synthesizer's
+silent pauses, do not change which rises count.
 """
 
 from __future__ import annotations
@@ -18,6 +20,9 @@ from scipy.signal import butter, find_peaks, sosfiltfilt
 
 HOP_S = 0.01
 WINDOW_S = 0.03
+#: Band loudness (dB) below this is digital silence (a stream's zero padding, inserted pauses), not the voice:
+#: it is left out of every level an utterance is measured against, so padding does not change them.
+DIGITAL_SILENCE_DB = -100.0
 
 
 @dataclass(frozen=True)
@@ -91,9 +96,12 @@ def acoustic_beats(
     db = band_loudness_db(audio, sr) if loudness_db is None else loudness_db
     if db.size < 5:
         return AcousticBeats(np.zeros(0), np.zeros(0))
+    heard = db > DIGITAL_SILENCE_DB
+    if heard.sum() < 5:
+        return AcousticBeats(np.zeros(0), np.zeros(0))
     db = gaussian_filter1d(db, smooth_s / HOP_S)
     rate = np.gradient(db) / HOP_S  # dB/s
-    quiet, loud = np.percentile(db, 20), np.percentile(db, 97)
+    quiet, loud = np.percentile(db[heard], 20), np.percentile(db[heard], 97)
     k = round(0.05 / HOP_S)
     idx, _ = find_peaks(rate, height=0.0, distance=max(1, round(min_gap_s / HOP_S)))
     after = db[np.minimum(idx + k, db.size - 1)]

@@ -23,7 +23,13 @@ from scipy.ndimage import gaussian_filter1d
 
 from robogest.errors import InputError
 from robogest.generators import lexicon as lx
-from robogest.generators.acoustic import HOP_S, AcousticBeats, acoustic_beats, band_loudness_db
+from robogest.generators.acoustic import (
+    DIGITAL_SILENCE_DB,
+    HOP_S,
+    AcousticBeats,
+    acoustic_beats,
+    band_loudness_db,
+)
 from robogest.generators.base import Generator, register_generator
 from robogest.generators.poses import DOF, HEAD_DOFS, N_DOF, READY, REST, dofs_to_rotations
 from robogest.generators.tags import align_words, parse_tags, sentences
@@ -162,8 +168,6 @@ NO_REPEAT_S = 10.0
 SEMANTIC_SPACING_S = 1.0
 #: Gaussian smoothing (s) of the loudness the drift's speed follows: phrase-level rises, not each syllable.
 LOUDNESS_SMOOTH_S = 0.3
-#: Band loudness (dB) below this is digital silence (a stream's zero padding), not part of the voice's range.
-DIGITAL_SILENCE_DB = -100.0
 
 
 @dataclass(frozen=True)
