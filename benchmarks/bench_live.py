@@ -266,13 +266,37 @@ def _streamed(robot, gen, ik, sp, seed: int, rate: float = 1.0, ahead_s: float |
     return pl.feed
 
 
-def bench_sync(seeds: tuple[int, ...] = tuple(range(10)), texts: tuple[str, ...] = SYNC_TEXTS) -> None:
+def _sync_clips(texts: tuple[str, ...], beat2: bool) -> list[tuple[str, object, np.ndarray]]:
+    """``(name, speech, reference events)`` for the sync comparison: eSpeak NG clips of ``texts`` (events: its own
+    stressed syllables) and, when ``../shared`` is there and ``beat2``, the two halves of the BEAT2 take (real
+    speech; events: the stressed-vowel onsets of its TextGrid). The generator gets only the speech."""
+    from robogest.eval.beats import stroke_sync_events
+    from robogest.speech import synthesize_with_stress
+
+    out = []
+    for text in texts:
+        sp, stressed = synthesize_with_stress(text)
+        out.append(
+            (f"TTS {sp.duration_s:.0f} s", sp, stroke_sync_events(sp.audio, sp.sr, stressed_vowels_s=stressed)[0])
+        )
+    if beat2:
+        from bench_generalize import beat2_clips
+
+        for clip in beat2_clips()[0]:
+            sp = clip.speech
+            name = f"{clip.name}{' (calibration half)' if clip.calibration else ''}"
+            out.append((name, sp, stroke_sync_events(sp.audio, sp.sr, stressed_vowels_s=clip.stressed_vowels_s)[0]))
+    return out
+
+
+def bench_sync(
+    seeds: tuple[int, ...] = tuple(range(10)), texts: tuple[str, ...] = SYNC_TEXTS, beat2: bool = True
+) -> None:
     """Stroke sync of what the robot does (goals of the control loop, wrist sites by forward kinematics), offline
     vs streamed on the same audio and words: mean, worst seed, and the paired difference with its standard error.
-    Streamed in real time (the worst case) and at 2x real time (TTS engines usually synthesize faster)."""
-    from robogest.eval.beats import stroke_sync_events
+    Streamed in real time (the worst case) and at 2x real time (TTS engines usually synthesize faster). Clips:
+    :func:`_sync_clips` (BEAT2's words are streamed with the chunk they start in, as for TTS)."""
     from robogest.pipeline import motion_to_trajectory
-    from robogest.speech import synthesize_with_stress
 
     robot, ik, gen, z_of = _sync_setup()
 
@@ -280,25 +304,22 @@ def bench_sync(seeds: tuple[int, ...] = tuple(range(10)), texts: tuple[str, ...]
         """The goals ``(N, J)`` for ``traj``, started as a live session starts an utterance."""
         return _play_stepped(robot, traj, approach_within_rad=0.2)[0]
 
-    for text in texts:
-        sp, stressed = synthesize_with_stress(text)
-        # the evaluation's reference events (kind "stressed_vowels"); the generator gets only sp
-        events, _ = stroke_sync_events(sp.audio, sp.sr, stressed_vowels_s=stressed)
+    for name, sp, events in _sync_clips(texts, beat2):
         runs: dict[str, list[float]] = {"offline": [], "streamed, real time": [], "streamed, 2x real time": []}
         for seed in seeds:
             traj, _, _ = motion_to_trajectory(gen.generate(sp, seed=seed), robot, silent_spans=sp.silent_spans)
             runs["offline"].append(z_of(played(traj), sp, events))
-            for name, rate in (("streamed, real time", 1.0), ("streamed, 2x real time", 2.0)):
-                runs[name].append(z_of(played(_streamed(robot, gen, ik, sp, seed, rate)), sp, events))
+            for run, rate in (("streamed, real time", 1.0), ("streamed, 2x real time", 2.0)):
+                runs[run].append(z_of(played(_streamed(robot, gen, ik, sp, seed, rate)), sp, events))
         off = np.array(runs["offline"])
-        print(f"stroke sync z, robot goals vs stressed vowels, {sp.duration_s:.0f} s clip, {len(seeds)} seeds "
-              f"(target: streamed not worse than -10 %):")  # fmt: skip
-        for name, z in runs.items():
+        print(f"stroke sync z, robot goals vs stressed vowels, {name}, {len(seeds)} seeds "
+              f"(target: streamed not worse than -10 %):", flush=True)  # fmt: skip
+        for run, z in runs.items():
             z = np.array(z)
             d = z - off
             se, pct = d.std(ddof=1) / np.sqrt(d.size), 100 * d.mean() / abs(off.mean())
-            diff = "" if name == "offline" else f"; - offline {d.mean():+.2f} ± {se:.2f} ({pct:+.0f} %)"
-            print(f"  {name:<24} mean {z.mean():5.2f} (worst {z.min():5.2f}){diff}")
+            diff = "" if run == "offline" else f"; - offline {d.mean():+.2f} ± {se:.2f} ({pct:+.0f} %)"
+            print(f"  {run:<24} mean {z.mean():5.2f} (worst {z.min():5.2f}){diff}", flush=True)
 
 
 def bench_sync_foresight(
