@@ -290,12 +290,13 @@ def _sync_clips(texts: tuple[str, ...], beat2: bool) -> list[tuple[str, object, 
 
 
 def bench_sync(
-    seeds: tuple[int, ...] = tuple(range(10)), texts: tuple[str, ...] = SYNC_TEXTS, beat2: bool = True
+    seeds: tuple[int, ...] = tuple(range(10)), texts: tuple[str, ...] = SYNC_TEXTS, beat2: bool = False
 ) -> None:
     """Stroke sync of what the robot does (goals of the control loop, wrist sites by forward kinematics), offline
     vs streamed on the same audio and words: mean, worst seed, and the paired difference with its standard error.
     Streamed in real time (the worst case) and at 2x real time (TTS engines usually synthesize faster). Clips:
-    :func:`_sync_clips` (BEAT2's words are streamed with the chunk they start in, as for TTS)."""
+    :func:`_sync_clips` (BEAT2's words are streamed with the chunk they start in, as for TTS). ``beat2`` adds the
+    BEAT2 halves: about 45 min more on the 2-core machine, so ``make bench`` leaves them out; run by hand."""
     from robogest.pipeline import motion_to_trajectory
 
     robot, ik, gen, z_of = _sync_setup()

@@ -6,8 +6,7 @@ deliberately not the evaluation's: it looks at the loudness of the 300-3000 Hz b
 window), smoothed, and takes local maxima of its rate of rise that lift the band by at least
 ``min_rise_db`` to a level well above the quiet frames, at least ``min_gap_s`` apart. It never inserts
 pseudo-beats: a stretch without a rise gets no stroke (the generator holds instead). The quiet and loud levels
-are the voice's: digital silence is left out of them, so a live stream's zero padding, or a synthesizer's
-silent pauses, do not change which rises count.
+are those of the audio heard: a live stream's zero padding for speech still to come is left out of them.
 """
 
 from __future__ import annotations
@@ -20,9 +19,6 @@ from scipy.signal import butter, find_peaks, sosfiltfilt
 
 HOP_S = 0.01
 WINDOW_S = 0.03
-#: Band loudness (dB) below this is digital silence (a stream's zero padding, inserted pauses), not the voice:
-#: it is left out of every level an utterance is measured against, so padding does not change them.
-DIGITAL_SILENCE_DB = -100.0
 
 
 @dataclass(frozen=True)
@@ -69,6 +65,7 @@ def acoustic_beats(
     min_rise_db: float = 4.0,
     smooth_s: float = 0.015,
     loudness_db: np.ndarray | None = None,
+    heard_s: float | None = None,
 ) -> AcousticBeats:
     """Stressable syllable onsets of an utterance (see the module docstring).
 
@@ -86,6 +83,10 @@ def acoustic_beats(
         Gaussian smoothing of the loudness track, seconds.
     loudness_db : ndarray [shape=(F,)], dB, optional
         :func:`band_loudness_db` of ``audio`` when the caller already has it (it is most of the cost).
+    heard_s : float, optional
+        Only the first ``heard_s`` seconds were heard (a stream's partial utterance, padded with zeros): the
+        levels a rise is judged against come from them. (Counted, 1.5 s of padding pulled the quiet level from
+        about -50 to -120 dB, so a stream's plans took weak rises for beats that the whole utterance does not.)
 
     Returns
     -------
@@ -96,7 +97,7 @@ def acoustic_beats(
     db = band_loudness_db(audio, sr) if loudness_db is None else loudness_db
     if db.size < 5:
         return AcousticBeats(np.zeros(0), np.zeros(0))
-    heard = db > DIGITAL_SILENCE_DB
+    heard = np.arange(db.size) * HOP_S < (np.inf if heard_s is None else heard_s)
     if heard.sum() < 5:
         return AcousticBeats(np.zeros(0), np.zeros(0))
     db = gaussian_filter1d(db, smooth_s / HOP_S)

@@ -23,13 +23,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from robogest.errors import InputError
 from robogest.generators import lexicon as lx
-from robogest.generators.acoustic import (
-    DIGITAL_SILENCE_DB,
-    HOP_S,
-    AcousticBeats,
-    acoustic_beats,
-    band_loudness_db,
-)
+from robogest.generators.acoustic import HOP_S, AcousticBeats, acoustic_beats, band_loudness_db
 from robogest.generators.base import Generator, register_generator
 from robogest.generators.poses import DOF, HEAD_DOFS, N_DOF, READY, REST, dofs_to_rotations
 from robogest.generators.tags import align_words, parse_tags, sentences
@@ -168,6 +162,8 @@ NO_REPEAT_S = 10.0
 SEMANTIC_SPACING_S = 1.0
 #: Gaussian smoothing (s) of the loudness the drift's speed follows: phrase-level rises, not each syllable.
 LOUDNESS_SMOOTH_S = 0.3
+#: Band loudness (dB) below this is digital silence (a stream's zero padding), not part of the voice's range.
+DIGITAL_SILENCE_DB = -100.0
 
 
 @dataclass(frozen=True)
@@ -260,8 +256,11 @@ class RhythmGenerator(Generator):
 
     def beats(self, speech: Speech, loudness_db: np.ndarray | None = None) -> AcousticBeats:
         """Where strokes may land: :func:`acoustic.acoustic_beats` of the speech, outside silent periods
-        (``loudness_db``: its :func:`acoustic.band_loudness_db`, if already computed)."""
-        return acoustic_beats(speech.audio, speech.sr, tuple(speech.silent_spans), loudness_db=loudness_db)
+        (``loudness_db``: its :func:`acoustic.band_loudness_db`, if already computed), judged against the levels
+        of the audio heard (:attr:`Speech.heard_s`)."""
+        return acoustic_beats(
+            speech.audio, speech.sr, tuple(speech.silent_spans), loudness_db=loudness_db, heard_s=speech.heard_s
+        )
 
     def plan(self, speech: Speech, seed: int = 0, acoustic: AcousticBeats | None = None) -> list[GestureEvent]:
         """Choose arm and head events (time, unit, amplitude) on acoustic beats; deterministic for a seed.

@@ -367,6 +367,7 @@ class SpeechStream:
             features=sf,
             source=source,
             text=" ".join(w.text for w in words),
+            heard_s=now if pad_n else None,
         )
 
 

@@ -103,6 +103,9 @@ class Speech:
     offset_s : float
         Where this speech starts within the utterance it was cut from (:meth:`crop`), seconds; 0 for a whole
         one. Motion that runs on its own clock (idle sway) uses it so that a cut and the whole agree.
+    heard_s : float or None
+        For a partial utterance (a live stream's :meth:`SpeechStream.speech`), how much of :attr:`audio` was
+        heard, seconds; the zeros after it stand for speech still to come. None: all of it.
     """
 
     audio: np.ndarray
@@ -117,6 +120,7 @@ class Speech:
     text: str = ""
     audio_path: Path | None = field(default=None)
     offset_s: float = 0.0
+    heard_s: float | None = None
 
     @property
     def duration_s(self) -> float:
@@ -161,4 +165,5 @@ class Speech:
             source=self.source,
             text=" ".join(w.text for w in words) if self.words else "",
             offset_s=self.offset_s + t0,
+            heard_s=None if self.heard_s is None else max(0.0, self.heard_s - t0),
         )

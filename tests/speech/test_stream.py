@@ -63,6 +63,10 @@ def test_padded_partial_speech_keeps_an_open_pause_silent(tts):
     assert sp.duration_s == pytest.approx(s.received_s + 1.0, abs=1e-3)
     assert sp.silent_spans[-1][1] == pytest.approx(sp.duration_s)  # the pause continues through the pad
     assert sp.n_frames == sp.features.mel_db.shape[0] == sp.features.pitch_hz.shape[0]
+    # the pad is marked as not heard, also in a cut (the generator judges beats against the audio heard)
+    assert sp.heard_s == pytest.approx(s.received_s)
+    assert sp.crop(1.0).heard_s == pytest.approx(s.received_s - 1.0, abs=0.05)
+    assert s.speech().heard_s is None  # nothing padded
 
 
 def test_bad_chunks_are_refused_with_the_fix():
