@@ -266,6 +266,20 @@ def _streamed(robot, gen, ik, sp, seed: int, rate: float = 1.0, ahead_s: float |
     return pl.feed
 
 
+def _played(robot, traj) -> np.ndarray:
+    """The goals ``(N, J)`` for ``traj`` (a Trajectory or a streamed feed), started as a live session starts an
+    utterance."""
+    return _play_stepped(robot, traj, approach_within_rad=0.2)[0]
+
+
+def _offline(robot, gen, sp, seed: int) -> np.ndarray:
+    """The goals ``(N, J)`` of the batch path for ``sp``: whole-utterance generation, retargeting, safety layer."""
+    from robogest.pipeline import motion_to_trajectory
+
+    traj, _, _ = motion_to_trajectory(gen.generate(sp, seed=seed), robot, silent_spans=sp.silent_spans)
+    return _played(robot, traj)
+
+
 def _sync_clips(texts: tuple[str, ...], beat2: bool) -> list[tuple[str, object, np.ndarray]]:
     """``(name, speech, reference events)`` for the sync comparison: eSpeak NG clips of ``texts`` (events: its own
     stressed syllables) and, when ``../shared`` is there and ``beat2``, the two halves of the BEAT2 take (real
@@ -296,22 +310,14 @@ def bench_sync(
     vs streamed on the same audio and words: mean, worst seed, and the paired difference with its standard error.
     Streamed in real time (the worst case) and at 2x real time (TTS engines usually synthesize faster). Clips:
     :func:`_sync_clips` (BEAT2's words are streamed with the chunk they start in, as for TTS). ``beat2`` adds the
-    BEAT2 halves: about 45 min more on the 2-core machine, so ``make bench`` leaves them out; run by hand."""
-    from robogest.pipeline import motion_to_trajectory
-
+    BEAT2 halves: 57 min more in one run on the 2-core machine, so ``make bench`` leaves them out; run by hand."""
     robot, ik, gen, z_of = _sync_setup()
-
-    def played(traj) -> np.ndarray:
-        """The goals ``(N, J)`` for ``traj``, started as a live session starts an utterance."""
-        return _play_stepped(robot, traj, approach_within_rad=0.2)[0]
-
     for name, sp, events in _sync_clips(texts, beat2):
         runs: dict[str, list[float]] = {"offline": [], "streamed, real time": [], "streamed, 2x real time": []}
         for seed in seeds:
-            traj, _, _ = motion_to_trajectory(gen.generate(sp, seed=seed), robot, silent_spans=sp.silent_spans)
-            runs["offline"].append(z_of(played(traj), sp, events))
+            runs["offline"].append(z_of(_offline(robot, gen, sp, seed), sp, events))
             for run, rate in (("streamed, real time", 1.0), ("streamed, 2x real time", 2.0)):
-                runs[run].append(z_of(played(_streamed(robot, gen, ik, sp, seed, rate)), sp, events))
+                runs[run].append(z_of(_played(robot, _streamed(robot, gen, ik, sp, seed, rate)), sp, events))
         off = np.array(runs["offline"])
         print(f"stroke sync z, robot goals vs stressed vowels, {name}, {len(seeds)} seeds "
               f"(target: streamed not worse than -10 %):", flush=True)  # fmt: skip
@@ -328,21 +334,13 @@ def bench_sync_foresight(
 ) -> None:
     """Why real-time streaming loses stroke sync: streamed z on the questions clip when the player runs ``ahead_s``
     behind the audio received (real-time delivery), against offline. A diagnostic, not a target."""
-    from robogest.eval.beats import stroke_sync_events
-    from robogest.pipeline import motion_to_trajectory
-    from robogest.speech import synthesize_with_stress
-
     robot, ik, gen, z_of = _sync_setup()
-    sp, stressed = synthesize_with_stress(SYNC_TEXTS[1])
-    events, _ = stroke_sync_events(sp.audio, sp.sr, stressed_vowels_s=stressed)
-    off = [z_of(_play_stepped(robot, motion_to_trajectory(gen.generate(sp, seed=s), robot,
-                                                          silent_spans=sp.silent_spans)[0],
-                              approach_within_rad=0.2)[0], sp, events) for s in seeds]  # fmt: skip
+    _, sp, events = _sync_clips(SYNC_TEXTS[1:], beat2=False)[0]
+    off = [z_of(_offline(robot, gen, sp, s), sp, events) for s in seeds]
     print(f"stroke sync z vs the audio the planner has heard beyond the player, {len(seeds)} seeds "
           f"(offline mean {np.mean(off):.2f}, worst {np.min(off):.2f}):")  # fmt: skip
     for ahead in aheads_s:
-        z = [z_of(_play_stepped(robot, _streamed(robot, gen, ik, sp, s, ahead_s=ahead), approach_within_rad=0.2)[0],
-                  sp, events) for s in seeds]  # fmt: skip
+        z = [z_of(_played(robot, _streamed(robot, gen, ik, sp, s, ahead_s=ahead)), sp, events) for s in seeds]
         print(f"  {ahead:.2f} s ahead: mean {np.mean(z):5.2f} (worst {np.min(z):5.2f})")
 
 

@@ -95,10 +95,8 @@ def acoustic_beats(
         its last 50 ms are not final yet).
     """
     db = band_loudness_db(audio, sr) if loudness_db is None else loudness_db
-    if db.size < 5:
-        return AcousticBeats(np.zeros(0), np.zeros(0))
     heard = np.arange(db.size) * HOP_S < (np.inf if heard_s is None else heard_s)
-    if heard.sum() < 5:
+    if heard.sum() < 5:  # also too short audio
         return AcousticBeats(np.zeros(0), np.zeros(0))
     db = gaussian_filter1d(db, smooth_s / HOP_S)
     rate = np.gradient(db) / HOP_S  # dB/s
