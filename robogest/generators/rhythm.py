@@ -11,10 +11,16 @@ Rhythmic Gesticulator §6.4.1).
 The motion is built as keyframe timelines in the angle space of :mod:`poses` and interpolated with
 minimum-jerk (quintic) segments; a segment is placed by where its wrist speed really peaks (the wrists move
 on curves, so not always at the segment's middle).
+
+A live stream plans with a :class:`LivePlan`: it hears a beat only about 0.15 s before the robot must move
+for it, so a stroke seen too late for its preparation goes straight from the held pose (shortened if it must
+be) and never changes frames already played, and each word not heard yet is expected to bring a beat. Without
+a live plan (a whole utterance) the output is as described above.
 """
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 
@@ -164,6 +170,46 @@ SEMANTIC_SPACING_S = 1.0
 LOUDNESS_SMOOTH_S = 0.3
 #: Band loudness (dB) below this is digital silence (a stream's zero padding), not part of the voice's range.
 DIGITAL_SILENCE_DB = -100.0
+#: Live plans: a word not heard yet is expected to bring a beat this long after its start, seconds. Calibrated on
+#: the BEAT2 calibration half only, streamed at real time (``bench_live.bench_sync``'s stream, 10 seeds): 0.05 /
+#: 0.08 / 0.11 s gave stroke-sync z 2.51 / 2.93 / 2.87 (the median offset of its stressed vowels from the starts
+#: of content words is 0.08 s, of function words 0.03 s).
+WORD_BEAT_S = 0.08
+#: Live plans: a stroke seen too late for its natural length is shortened (and scaled down alike, so its peak
+#: speed stays) to no less than this, seconds, or skipped.
+MIN_LATE_STROKE_S = 0.1
+
+
+@dataclass
+class LivePlan:
+    """What a streaming planner and the generator share across the plans of one utterance (utterance clock, s).
+
+    A live stream hears each beat only about 0.15 s before the robot must move for it, too late for the
+    preparation an offline plan gives a stroke, and the frames already sent are final. So a live plan (i) lets
+    no new stroke change the motion before :attr:`commit_s`: a stroke first seen after its preparation should
+    have started goes straight from the held pose, shortened if it must be; (ii) expects a beat
+    :data:`WORD_BEAT_S` after each word that has started but not been heard yet, which gives about 0.1 s more
+    warning; (iii) remembers how it placed each stroke and which expected beats got one, so later plans,
+    which hear more, keep what has started playing.
+
+    Attributes
+    ----------
+    commit_s : float
+        Frames before this are played (final), seconds.
+    replan_s : float
+        The next plan comes about this much later, seconds: a stroke that starts before ``commit_s + replan_s``
+        will be playing by then, so the expected beat it is on is kept.
+    placed : dict
+        ``(beat_s, unit) -> scale``: how each stroke was first placed; 0 for prepared as offline, else the
+        factor a late stroke from the held pose was shortened by (1: not shortened).
+    expected_s : set of float
+        Expected (word) beats on which a stroke was placed: kept, in place of the heard beat near them.
+    """
+
+    commit_s: float = -math.inf
+    replan_s: float = 0.1
+    placed: dict[tuple[float, str], float] = field(default_factory=dict)
+    expected_s: set[float] = field(default_factory=set)
 
 
 @dataclass(frozen=True)
@@ -261,6 +307,25 @@ class RhythmGenerator(Generator):
         return acoustic_beats(
             speech.audio, speech.sr, tuple(speech.silent_spans), loudness_db=loudness_db, heard_s=speech.heard_s
         )
+
+    @staticmethod
+    def _expected_beats(ab: AcousticBeats, speech: Speech, live: LivePlan) -> tuple[AcousticBeats, set[float]]:
+        """``ab`` plus a beat :data:`WORD_BEAT_S` after each word not heard yet that has none, and the expected
+        beats a stroke was already placed on (replacing heard beats within 0.12 s of them). Also returns the
+        expected beats, on the utterance's clock (rounded to 1 ms)."""
+        off, heard = speech.offset_s, speech.heard_s
+        t, p = list(ab.t_s), list(ab.prominence)
+        expected = {s for s in live.expected_s if off <= s < off + speech.duration_s}
+        if heard is not None:
+            for w in speech.words:
+                # a word's first beat is heard about 0.1 s after it starts (0.05 s in, confirmed 0.05 s later)
+                if w.start_s + 0.1 > heard and not any(w.start_s - 0.1 <= b <= w.end_s for b in t):
+                    expected.add(round(w.start_s + WORD_BEAT_S + off, 3))
+        for e in sorted(expected):
+            keep = [i for i, b in enumerate(t) if abs(b + off - e) > 0.12]
+            t, p = [t[i] for i in keep] + [e - off], [p[i] for i in keep] + [0.5]
+        order = np.argsort(t, kind="stable")
+        return AcousticBeats(np.asarray(t, float)[order], np.asarray(p, float)[order]), expected
 
     def plan(self, speech: Speech, seed: int = 0, acoustic: AcousticBeats | None = None) -> list[GestureEvent]:
         """Choose arm and head events (time, unit, amplitude) on acoustic beats; deterministic for a seed.
@@ -464,15 +529,12 @@ class RhythmGenerator(Generator):
         k = int(np.argmin(np.where(ok, start - free_s, np.inf)))
         return float(beats_s[k]), float(start[k])
 
-    def _relax_on_beat(self, tr: _Track, beats_s: np.ndarray, before_s: float) -> None:
-        """In a long gap, settle into READY with a slow move centred on a free beat (its peak on the beat)."""
-        c = self.config
-        half = max(0.35, self._min_time_s(tr.last_v, READY) / c.prep_speed_ratio / 2)
+    def _relax_beat(self, tr: _Track, beats_s: np.ndarray, before_s: float) -> tuple[float, float] | None:
+        """In a long gap, the free beat on which to settle into READY with a slow move centred on it (its peak on
+        the beat) and the move's half length, seconds; None if none fits."""
+        half = max(0.35, self._min_time_s(tr.last_v, READY) / self.config.prep_speed_ratio / 2)
         ok = (beats_s - half >= tr.last_t) & (beats_s + half <= before_s)
-        if ok.any():
-            b = float(beats_s[ok][0])
-            tr.add(b - half, tr.last_v)
-            tr.add(b + half, READY)
+        return (float(beats_s[ok][0]), half) if ok.any() else None
 
     def stroke_peak_s(self, e: GestureEvent) -> float:
         """Where the wrist-speed peak of arm event ``e``'s stroke is placed, s: ``stroke_lead_s`` before its
@@ -480,14 +542,22 @@ class RhythmGenerator(Generator):
         return e.t_s if e.source.startswith("tag:") else e.t_s - self.config.stroke_lead_s
 
     def _arm_track(
-        self, events: list[GestureEvent], rests: list[tuple[float, float]], end_s: float, beats_s: np.ndarray
+        self,
+        events: list[GestureEvent],
+        rests: list[tuple[float, float]],
+        end_s: float,
+        beats_s: np.ndarray,
+        live: LivePlan | None = None,
+        off_s: float = 0.0,
+        expected_s: frozenset[float] = frozenset(),
     ) -> tuple[_Track, list[tuple[float, float, GestureEvent]]]:
         """Arm/spine keyframes: each gesture is prep -> stroke (peak ``stroke_lead_s`` before its beat, see
         :meth:`stroke_peak_s`) -> hold. Every move made while speaking peaks ``stroke_lead_s`` before an
         acoustic beat (preparations and relaxations are slower than strokes);
         where speech goes on without a chosen beat the pose is held; in rest windows the arms sit exactly
         at REST (the retraction starts when the pause does). Also returns the placed strokes
-        ``(start_s, end_s, event)``."""
+        ``(start_s, end_s, event)``. ``live``: a streaming plan (:class:`LivePlan`; ``off_s`` is the speech's
+        offset on the utterance's clock, ``expected_s`` the expected beats of this plan there)."""
         c = self.config
         placed: list[tuple[float, float, GestureEvent]] = []
         tr = _Track()
@@ -522,11 +592,45 @@ class RhythmGenerator(Generator):
                 continue  # still busy with the previous gesture
             if nxt and hold_end + max(c.retract_s, self._min_time_s(stroke_pose, REST)) > nxt[0]:
                 continue  # it would run into a rest period
-            if s0 - tr.last_t > c.ready_after_s + 2 * c.prep_s:
-                self._relax_on_beat(tr, moves_s, s0 - c.prep_s)
+            relax = (
+                self._relax_beat(tr, moves_s, s0 - c.prep_s)
+                if s0 - tr.last_t > c.ready_after_s + 2 * c.prep_s
+                else None
+            )
             # Preparation: a slower move into the prep pose whose speed peak leads an earlier acoustic beat,
             # so it never adds a peak off the beat. Without such a beat the stroke starts from the held pose.
             need = max(c.min_prep_s, self._min_time_s(tr.last_v, prep_pose) / c.prep_speed_ratio)
+            key = (round(e.t_s + off_s, 2), e.unit)
+            late = live.placed.get(key) if live is not None else 0.0
+            if late is None:  # first seen by this live plan: too late for its preparation (or relaxation)?
+                prep = self._prep_beat(moves_s, tr.last_t, s0, need, self._path(tr.last_v, prep_pose)[1])
+                first = relax[0] - relax[1] if relax else (s0 if prep is None else prep[1])
+                late = 0.0 if first >= live.commit_s - off_s - 1e-6 else -1.0  # type: ignore[union-attr]
+            if late != 0.0:  # straight from the held pose, shortened to fit after the committed frames if it must be
+                d = max(stroke_s, self._min_time_s(tr.last_v, stroke_pose))
+                f_d = self._path(tr.last_v, stroke_pose)[1]
+                if late < 0:
+                    lo = max(tr.last_t, live.commit_s - off_s)  # type: ignore[union-attr]
+                    late = min(1.0, (pk - lo - 0.01) / (f_d * d))
+                    if late * d < MIN_LATE_STROKE_S:
+                        continue
+                stroke_pose = tr.last_v + (stroke_pose - tr.last_v) * late  # same peak speed, shorter
+                d *= late
+                s0, s1 = pk - f_d * d, pk + (1 - f_d) * d
+                hold_end = s1 + c.hold_scale * u.hold_s
+                if s0 < tr.last_t + 1e-6 or (
+                    nxt and hold_end + max(c.retract_s, self._min_time_s(stroke_pose, REST)) > nxt[0]
+                ):
+                    continue
+                tr.add(s0, tr.last_v)
+                tr.add(s1, stroke_pose)
+                self._remember(live, key, late, e, off_s, expected_s, s0)
+                placed.append((s0, s1, e))
+                tr.add(hold_end, stroke_pose)
+                continue
+            if relax:
+                tr.add(relax[0] - relax[1], tr.last_v)
+                tr.add(relax[0] + relax[1], READY)
             prep = self._prep_beat(moves_s, tr.last_t, s0, need, self._path(tr.last_v, prep_pose)[1])
             if prep is not None:
                 tr.add(prep[1], tr.last_v)
@@ -543,12 +647,32 @@ class RhythmGenerator(Generator):
                     continue
                 tr.add(s0, tr.last_v)
                 tr.add(s1, stroke_pose)
+            self._remember(live, key, 0.0, e, off_s, expected_s, s0)
             placed.append((s0, s1, e))
             tr.add(hold_end, stroke_pose)
         if not rests or rests[-1][1] < end_s - 1e-6:
             tr.add(max(tr.last_t, end_s - max(c.retract_s, self._min_time_s(tr.last_v, REST))), tr.last_v)
             tr.add(max(tr.last_t + 0.05, end_s), REST)
         return tr, placed
+
+    @staticmethod
+    def _remember(
+        live: LivePlan | None,
+        key: tuple[float, str],
+        late: float,
+        e: GestureEvent,
+        off_s: float,
+        expected_s: frozenset[float],
+        start_s: float,
+    ) -> None:
+        """Note how a stroke starting at ``start_s`` was placed; an expected beat it is on stays once the stroke
+        plays before the next plan (until then the heard beat, when it comes, may still move it)."""
+        if live is None:
+            return
+        live.placed.setdefault(key, late)
+        t = round(e.t_s + off_s, 3)
+        if t in expected_s and start_s + off_s < live.commit_s + live.replan_s:
+            live.expected_s.add(t)
 
     def strokes(self, speech: Speech, seed: int = 0) -> list[tuple[float, float, GestureEvent]]:
         """The arm strokes :meth:`generate` makes: ``(start_s, end_s, event)``, speed peak at
@@ -583,7 +707,8 @@ class RhythmGenerator(Generator):
             tr.add(w1, zero)
         return tr, shakes
 
-    def generate(self, speech: Speech, seed: int = 0) -> HumanMotion:
+    def generate(self, speech: Speech, seed: int = 0, live: LivePlan | None = None) -> HumanMotion:
+        """Motion for ``speech``; ``live`` when it is one plan of a stream (:class:`LivePlan`, updated here)."""
         c = self.config
         fps = c.fps or speech.fps
         n = speech.n_frames if fps == speech.fps else round(speech.duration_s * fps)
@@ -591,9 +716,13 @@ class RhythmGenerator(Generator):
         rests = self.rest_windows(speech)
         db = band_loudness_db(speech.audio, speech.sr)  # (F,) the beats and the drift both follow it
         ab = self.beats(speech, db)
+        expected: set[float] = set()
+        if live is not None:
+            ab, expected = self._expected_beats(ab, speech, live)
         events = self.plan(speech, seed, ab)
         beats = ab.t_s
-        dofs = self._arm_track(events, rests, speech.duration_s, beats)[0].sample(t)  # (T, D)
+        track = self._arm_track(events, rests, speech.duration_s, beats, live, speech.offset_s, frozenset(expected))
+        dofs = track[0].sample(t)  # (T, D)
         head, shakes = self._head_track(events, rests)
         dofs[:, list(HEAD_DOFS)] += head.sample(t)
         for s0, s1, hz, amp in shakes:

@@ -8,9 +8,14 @@ a trajectory, L behind the newest audio (the speech audio is delayed by the same
 
 Frames are *provisional* until the control loop samples them: a later plan that sees a new beat rewrites the
 frames not yet played (blended from the last frame kept, so the target never jumps), and frames already played
-are never changed. So a stroke planned on a guessed beat moves to the heard beat as long as it has not been
-played, and the feed always holds a few hundred milliseconds of motion beyond what is playing, so a plan that
-comes late does not stall the robot.
+are never changed. The feed always holds a few hundred milliseconds of motion beyond what is playing, so a
+plan that comes late does not stall the robot.
+
+At exactly real time a beat is heard only about 0.15 s before the frames that must move for it are played,
+too late for the preparation an offline plan gives its stroke. So the planner shares a
+:class:`~robogest.generators.rhythm.LivePlan` with the generator across the utterance's plans: the frames
+played so far are committed (a new stroke goes straight from the held pose after them, shortened if it must
+be), each word not heard yet is expected to bring a beat, and strokes already placed stay as placed.
 
 The work per plan is bounded, whatever the utterance's length: generation starts at the latest pause in which
 the generator held rest (or, in speech without such a pause, a few seconds before the frames being played;
@@ -22,6 +27,7 @@ Learned generators stay batch-only (they need the whole utterance's features); t
 
 from __future__ import annotations
 
+import inspect
 import math
 import threading
 import time
@@ -230,6 +236,12 @@ class StreamingPlanner:
         self.start_s = 0.0  #: where the current generation window starts, seconds
         self.n_plans = 0
         self.plan_s: list[float] = []  #: wall time each plan took, seconds
+        #: shared with the generator across this utterance's plans, when it plans live (``rhythm``)
+        self.live = None
+        if "live" in inspect.signature(generator.generate).parameters:
+            from robogest.generators.rhythm import LivePlan
+
+            self.live = LivePlan(replan_s=stream.update_s)
 
     def _window_start(self, speech_rests: list[tuple[float, float]], received_s: float) -> float:
         """Start of the generation window: a rest window already heard, or a bounded stretch back."""
@@ -261,7 +273,12 @@ class StreamingPlanner:
         rests = rest_windows(full) if rest_windows is not None else []
         self.start_s = self._window_start(rests, st.received_s)
         off = round(self.start_s * feed.fps)
-        motion = self.generator.generate(full.crop(self.start_s), seed=self.seed).resample(feed.fps)
+        if self.live is not None:  # frames the player has used are final: new strokes start after them
+            self.live.commit_s = feed.first_open / feed.fps
+            motion = self.generator.generate(full.crop(self.start_s), seed=self.seed, live=self.live)
+        else:
+            motion = self.generator.generate(full.crop(self.start_s), seed=self.seed)
+        motion = motion.resample(feed.fps)
         upto_s = full.duration_s if final else st.received_s + self.ahead_s
         n_end = off + motion.n_frames if final else min(off + motion.n_frames, math.floor(upto_s * feed.fps) + 1)
         d = self._first_changed(motion.rotations, off, max(off, feed.first_open), n_end)

@@ -277,3 +277,56 @@ def test_plan_of_a_partial_utterance_is_a_prefix_of_the_whole_plan():
     a = [e for e in g.plan(whole, seed=5) if e.t_s < 5.8]
     b = [e for e in g.plan(part, seed=5) if e.t_s < 5.8]
     assert len(a) > 5 and a == b
+
+
+def test_live_plan_changes_nothing_before_the_committed_frames():
+    """A stream hears a beat only about 0.15 s before the robot must move for it: a stroke first seen after its
+    preparation should have started goes straight from the held pose, shortened to fit, so the frames already
+    played stay as they were; later plans, with later commits, keep it as placed."""
+    from robogest.generators.rhythm import GestureEvent, LivePlan
+
+    beats = np.array([1.0, 1.5, 3.0, 3.5])
+    g = RhythmGenerator(RhythmConfig(fps=50.0, sway_rad=0.0, drift_m_s=0.0))
+    e1, e2 = GestureEvent(1.5, "beat_large_both", 1.5, "beat"), GestureEvent(3.5, "beat_medium_both", 1.5, "beat")
+    t = np.arange(0, 5.0, 0.005)
+    offline = g._arm_track([e1, e2], [], 5.0, beats)[0].sample(t)
+    live = LivePlan(commit_s=0.0)
+    g._arm_track([e1], [], 5.0, beats[:2], live)  # the first stroke, seen in time: prepared as offline
+    live.commit_s = 3.3
+    before = g._arm_track([e1], [], 5.0, beats[:3], live)[0].sample(t)
+    track, placed = g._arm_track([e1, e2], [], 5.0, beats, live)
+    after = track.sample(t)
+    past = t < live.commit_s
+    np.testing.assert_allclose(before[t < 2.0], offline[t < 2.0])
+    assert np.abs(offline[past] - before[past]).max() > 0.05  # offline prepares the second stroke before 3.3 s
+    np.testing.assert_allclose(after[past], before[past])
+    s0, s1, e = placed[-1]
+    assert e == e2 and s0 >= live.commit_s
+    v = np.linalg.norm(np.diff(g_positions(after), axis=0), axis=-1).max(axis=1) / 0.005  # (T-1,) m/s
+    tv = t[:-1] + 0.0025
+    stroke = (tv >= s0) & (tv <= s1)
+    assert abs(tv[stroke][np.argmax(v[stroke])] - (3.5 - g.config.stroke_lead_s)) < 0.03  # still on its beat
+    live.commit_s = 3.45
+    np.testing.assert_allclose(g._arm_track([e1, e2], [], 5.0, beats, live)[0].sample(t), after)
+    fresh = g._arm_track([e1, e2], [], 5.0, beats, LivePlan(commit_s=3.45))[1]
+    assert fresh == []  # seen this late, neither stroke can start after the committed frames: both skipped
+
+
+def test_live_plan_expects_a_beat_in_each_word_not_heard_yet():
+    """Words reach a stream with the chunk they start in, about 0.1 s before the beat they bring is heard: a
+    live plan expects it ``WORD_BEAT_S`` after the word's start, and keeps an expected beat that got a stroke
+    when the heard one comes (the stroke has started)."""
+    from robogest.generators.rhythm import WORD_BEAT_S, LivePlan
+
+    words = [("one", 0.45, 0.8), ("two", 0.95, 1.3), ("three", 1.96, 2.4)]
+    heard = dataclasses.replace(build_speech(3.0, [0.5, 1.0], [], words), heard_s=2.0)
+    g = RhythmGenerator()
+    live = LivePlan()
+    ab, expected = g._expected_beats(g.beats(heard), heard, live)
+    assert expected == {round(1.96 + WORD_BEAT_S, 3)}
+    np.testing.assert_allclose(ab.t_s, [*g.beats(heard).t_s, 1.96 + WORD_BEAT_S], atol=1e-9)
+    whole = build_speech(3.0, [0.5, 1.0, 2.05], [], words)
+    assert g._expected_beats(g.beats(whole), whole, live)[1] == set()  # heard now, and no stroke was placed on it
+    live.expected_s.add(round(1.96 + WORD_BEAT_S, 3))
+    ab = g._expected_beats(g.beats(whole), whole, live)[0]
+    assert np.sum(np.abs(ab.t_s - 2.05) < 0.12) == 1 and np.any(np.isclose(ab.t_s, 1.96 + WORD_BEAT_S))

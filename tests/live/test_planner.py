@@ -68,16 +68,22 @@ def test_splice_takes_pinned_frames_as_they_are_and_fills_a_gap_keeping_time(cfg
 
 
 # --- the planner ---------------------------------------------------------------------------------------
-def _stream_with_player(cfg, speech, lookahead_s=0.15, **planner_kw):
-    """Feed ``speech`` in 20 ms chunks; a stand-in player samples the feed L behind the newest audio.
+def _stream_with_player(cfg, speech, lookahead_s=0.15, words=False, **planner_kw):
+    """Feed ``speech`` in 20 ms chunks (with ``words``, each word with the chunk it starts in); a stand-in player
+    samples the feed L behind the newest audio.
 
     Returns the planner and, per frame, its value when the player first used it."""
     st = SpeechStream(speech.sr, lookahead_s=lookahead_s)
     pl = StreamingPlanner(cfg, make_generator("rhythm"), DirectionIK(cfg), st, **planner_kw)
     feed, played = pl.feed, {}
     step = round(0.02 * speech.sr)
+    todo = list(speech.words) if words else []
     for i in range(0, len(speech.audio), step):
-        if st.feed(speech.audio[i : i + step]):
+        ws = []
+        while todo and todo[0].start_s < (i + step) / speech.sr:
+            w = todo.pop(0)
+            ws.append((w.text, w.start_s, w.end_s))
+        if st.feed(speech.audio[i : i + step], words=ws):
             pl.plan()
         t = st.received_s - lookahead_s
         if t >= 0 and feed.n_frames:
@@ -100,6 +106,20 @@ def test_played_frames_are_never_revised_and_later_ones_are(cfg, tts):
     np.testing.assert_allclose(feed.q_rad[-1], cfg.rest_q_rad, atol=1e-12)
     q = feed.q_rad
     assert np.all(q >= cfg.q_min_rad) and np.all(q <= cfg.q_max_rad)
+
+
+def test_plans_share_a_live_plan_that_commits_the_frames_played(cfg, tts):
+    """At exactly real time a beat is heard only about 0.15 s before the robot must move for it: the planner tells
+    the generator which frames are played, so strokes seen too late for their preparation start from the held
+    pose after them, and words not heard yet bring expected beats (the invariant itself is tested on the
+    generator, ``test_live_plan_changes_nothing_before_the_committed_frames``)."""
+    pl, played = _stream_with_player(cfg, tts, lookahead_s=0.25, words=True)
+    live = pl.live
+    assert live is not None and live.commit_s == pytest.approx(max(played) / pl.feed.fps, abs=0.05)
+    assert any(0.0 < scale for scale in live.placed.values())  # strokes placed late, from the held pose
+    assert live.expected_s  # strokes on beats expected from words not heard yet
+    for k, q in played.items():
+        np.testing.assert_array_equal(pl.feed.q_rad[k], q)
 
 
 def test_each_plan_generates_over_a_bounded_stretch(cfg):
