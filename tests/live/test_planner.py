@@ -116,7 +116,7 @@ def test_plans_share_a_live_plan_that_commits_the_frames_played(cfg, tts):
     pl, played = _stream_with_player(cfg, tts, lookahead_s=0.25, words=True)
     live = pl.live
     assert live is not None and live.commit_s == pytest.approx(max(played) / pl.feed.fps, abs=0.05)
-    assert any(0.0 < scale for scale in live.placed.values())  # strokes placed late, from the held pose
+    assert any(scale > 0.0 for scale in live.placed.values())  # strokes placed late, from the held pose
     assert live.expected_s  # strokes on beats expected from words not heard yet
     for k, q in played.items():
         np.testing.assert_array_equal(pl.feed.q_rad[k], q)
