@@ -606,7 +606,17 @@ class RhythmGenerator(Generator):
                 prep = self._prep_beat(moves_s, tr.last_t, s0, need, self._path(tr.last_v, prep_pose)[1])
                 first = relax[0] - relax[1] if relax else (s0 if prep is None else prep[1])
                 late = 0.0 if first >= live.commit_s - off_s - 1e-6 else -1.0  # type: ignore[union-attr]
-            if late != 0.0:  # straight from the held pose, shortened to fit after the committed frames if it must be
+            prep = None
+            if late == 0.0:  # as offline: a preparation on an earlier beat, if one fits
+                if relax:
+                    tr.add(relax[0] - relax[1], tr.last_v)
+                    tr.add(relax[0] + relax[1], READY)
+                prep = self._prep_beat(moves_s, tr.last_t, s0, need, self._path(tr.last_v, prep_pose)[1])
+                if prep is not None:
+                    tr.add(prep[1], tr.last_v)
+                    tr.add(s0, prep_pose)
+                    tr.add(s1, stroke_pose)
+            if prep is None:  # straight from the held pose (late: shortened to start after the committed frames)
                 d = max(stroke_s, self._min_time_s(tr.last_v, stroke_pose))
                 f_d = self._path(tr.last_v, stroke_pose)[1]
                 if late < 0:
@@ -614,40 +624,18 @@ class RhythmGenerator(Generator):
                     late = min(1.0, (pk - lo - 0.01) / (f_d * d))
                     if late * d < MIN_LATE_STROKE_S:
                         continue
-                stroke_pose = tr.last_v + (stroke_pose - tr.last_v) * late  # same peak speed, shorter
-                d *= late
+                if late > 0:
+                    stroke_pose = tr.last_v + (stroke_pose - tr.last_v) * late  # same peak speed, shorter
+                    d *= late
                 s0, s1 = pk - f_d * d, pk + (1 - f_d) * d
                 hold_end = s1 + c.hold_scale * u.hold_s
-                if s0 < tr.last_t + 1e-6 or (
-                    nxt and hold_end + max(c.retract_s, self._min_time_s(stroke_pose, REST)) > nxt[0]
-                ):
-                    continue
-                tr.add(s0, tr.last_v)
-                tr.add(s1, stroke_pose)
-                self._remember(live, key, late, e, off_s, expected_s, s0)
-                placed.append((s0, s1, e))
-                tr.add(hold_end, stroke_pose)
-                continue
-            if relax:
-                tr.add(relax[0] - relax[1], tr.last_v)
-                tr.add(relax[0] + relax[1], READY)
-            prep = self._prep_beat(moves_s, tr.last_t, s0, need, self._path(tr.last_v, prep_pose)[1])
-            if prep is not None:
-                tr.add(prep[1], tr.last_v)
-                tr.add(s0, prep_pose)
-                tr.add(s1, stroke_pose)
-            else:
-                d = max(stroke_s, self._min_time_s(tr.last_v, stroke_pose))
-                f_d = self._path(tr.last_v, stroke_pose)[1]
-                if pk - f_d * d < tr.last_t + 1e-6:
+                if s0 < tr.last_t + 1e-6:
                     continue  # no time for the stroke at a natural speed
-                s0, s1 = pk - f_d * d, pk + (1 - f_d) * d
-                hold_end = s1 + c.hold_scale * u.hold_s
                 if nxt and hold_end + max(c.retract_s, self._min_time_s(stroke_pose, REST)) > nxt[0]:
                     continue
                 tr.add(s0, tr.last_v)
                 tr.add(s1, stroke_pose)
-            self._remember(live, key, 0.0, e, off_s, expected_s, s0)
+            self._remember(live, key, late, e, off_s, expected_s, s0)
             placed.append((s0, s1, e))
             tr.add(hold_end, stroke_pose)
         if not rests or rests[-1][1] < end_s - 1e-6:
