@@ -20,6 +20,7 @@ a live plan (a whole utterance) the output is as described above.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from dataclasses import dataclass, field
@@ -180,6 +181,16 @@ WORD_BEAT_S = 0.08
 MIN_LATE_STROKE_S = 0.1
 
 
+@dataclass(frozen=True)
+class GestureEvent:
+    """A unit placed in time: its stroke is centred on ``t_s``."""
+
+    t_s: float
+    unit: str
+    amplitude: float
+    source: str  # "tag:<word>", "keyword:<trigger>", "meaning:<similarity>" or "beat"
+
+
 @dataclass
 class LivePlan:
     """What a streaming planner and the generator share across the plans of one utterance (utterance clock, s).
@@ -189,8 +200,8 @@ class LivePlan:
     no new stroke change the motion before :attr:`commit_s`: a stroke first seen after its preparation should
     have started goes straight from the held pose, shortened if it must be; (ii) expects a beat
     :data:`WORD_BEAT_S` after each word that has started but not been heard yet, which gives about 0.1 s more
-    warning; (iii) remembers how it placed each stroke and which expected beats got one, so later plans,
-    which hear more, keep what has started playing.
+    warning; (iii) remembers how it placed each stroke, which gestures have started and which expected beats
+    got one, so later plans, which hear more, keep what has started playing.
 
     Attributes
     ----------
@@ -204,22 +215,42 @@ class LivePlan:
         factor a late stroke from the held pose was shortened by (1: not shortened).
     expected_s : set of float
         Expected (word) beats on which a stroke was placed: kept, in place of the heard beat near them.
+    started : dict
+        ``round(beat_s, 2) -> GestureEvent`` (utterance clock): arm gestures whose motion (preparation,
+        relaxation or stroke) starts before ``commit_s + replan_s``. Later plans keep them as they are, whatever
+        they now hear: a beat's prominence is judged against more speech each time, and the choices drawn after
+        a changed beat change too, so a plan could drop a gesture the robot is already moving into.
     """
 
     commit_s: float = -math.inf
     replan_s: float = 0.1
     placed: dict[tuple[float, str], float] = field(default_factory=dict)
     expected_s: set[float] = field(default_factory=set)
+    started: dict[float, GestureEvent] = field(default_factory=dict)
 
+    def note(self, e: GestureEvent, late: float, move_s: float, stroke_s: float, expected: frozenset[float]) -> None:
+        """Note how arm event ``e`` was placed (all on the utterance clock): its motion starts at ``move_s``, its
+        stroke at ``stroke_s``. What plays before the next plan stays: the gesture, and the expected beat it is
+        on (until then the heard beat, when it comes, may still move it)."""
+        self.placed.setdefault((round(e.t_s, 2), e.unit), late)
+        due = self.commit_s + self.replan_s
+        if move_s < due:
+            self.started.setdefault(round(e.t_s, 2), e)
+        t = round(e.t_s, 3)
+        if t in expected and stroke_s < due:
+            self.expected_s.add(t)
 
-@dataclass(frozen=True)
-class GestureEvent:
-    """A unit placed in time: its stroke is centred on ``t_s``."""
-
-    t_s: float
-    unit: str
-    amplitude: float
-    source: str  # "tag:<word>", "keyword:<trigger>", "meaning:<similarity>" or "beat"
+    def keep_started(
+        self, events: list[GestureEvent], arms: set[str], off_s: float, end_s: float
+    ) -> list[GestureEvent]:
+        """``events`` of a plan over ``[off_s, end_s)`` (its clock starts at ``off_s``) with the started gestures
+        in it put back in place of any arm event (units ``arms``) within 0.12 s of them."""
+        kept = [dataclasses.replace(e, t_s=e.t_s - off_s) for t, e in self.started.items() if off_s <= t < end_s]
+        if not kept:
+            return events
+        near = np.array([k.t_s for k in kept])
+        out = [e for e in events if e.unit not in arms or np.abs(near - e.t_s).min() >= 0.12] + kept
+        return sorted(out, key=lambda e: (e.t_s, e.source == "beat"))
 
 
 @dataclass
@@ -635,32 +666,15 @@ class RhythmGenerator(Generator):
                     continue
                 tr.add(s0, tr.last_v)
                 tr.add(s1, stroke_pose)
-            self._remember(live, key, late, e, off_s, expected_s, s0)
+            if live is not None:
+                move = relax[0] - relax[1] if late == 0.0 and relax else prep[1] if prep is not None else s0
+                live.note(dataclasses.replace(e, t_s=e.t_s + off_s), late, move + off_s, s0 + off_s, expected_s)
             placed.append((s0, s1, e))
             tr.add(hold_end, stroke_pose)
         if not rests or rests[-1][1] < end_s - 1e-6:
             tr.add(max(tr.last_t, end_s - max(c.retract_s, self._min_time_s(tr.last_v, REST))), tr.last_v)
             tr.add(max(tr.last_t + 0.05, end_s), REST)
         return tr, placed
-
-    @staticmethod
-    def _remember(
-        live: LivePlan | None,
-        key: tuple[float, str],
-        late: float,
-        e: GestureEvent,
-        off_s: float,
-        expected_s: frozenset[float],
-        start_s: float,
-    ) -> None:
-        """Note how a stroke starting at ``start_s`` was placed; an expected beat it is on stays once the stroke
-        plays before the next plan (until then the heard beat, when it comes, may still move it)."""
-        if live is None:
-            return
-        live.placed.setdefault(key, late)
-        t = round(e.t_s + off_s, 3)
-        if t in expected_s and start_s + off_s < live.commit_s + live.replan_s:
-            live.expected_s.add(t)
 
     def strokes(self, speech: Speech, seed: int = 0) -> list[tuple[float, float, GestureEvent]]:
         """The arm strokes :meth:`generate` makes: ``(start_s, end_s, event)``, speed peak at
@@ -708,6 +722,9 @@ class RhythmGenerator(Generator):
         if live is not None:
             ab, expected = self._expected_beats(ab, speech, live)
         events = self.plan(speech, seed, ab)
+        if live is not None:
+            arms = {n for n, u in self.repertoire.units.items() if u.channel == "arms"}
+            events = live.keep_started(events, arms, speech.offset_s, speech.offset_s + speech.duration_s)
         beats = ab.t_s
         track = self._arm_track(events, rests, speech.duration_s, beats, live, speech.offset_s, frozenset(expected))
         dofs = track[0].sample(t)  # (T, D)

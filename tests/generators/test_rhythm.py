@@ -312,6 +312,35 @@ def test_live_plan_changes_nothing_before_the_committed_frames():
     assert fresh == []  # seen this late, neither stroke can start after the committed frames: both skipped
 
 
+def test_live_plan_keeps_a_gesture_the_robot_has_started():
+    """A later plan hears more and may choose otherwise at a beat whose gesture is already under way (its
+    prominence judged against louder speech, the random choices after a changed beat): a live plan keeps the
+    started gesture, so the frames being played are not undone; gestures not started yet may still change."""
+    from robogest.generators.rhythm import GestureEvent, LivePlan
+
+    g = RhythmGenerator(RhythmConfig(fps=50.0, sway_rad=0.0, drift_m_s=0.0))
+    arms = {n for n, u in g.repertoire.units.items() if u.channel == "arms"}
+    beats = np.array([1.0, 1.5, 3.0, 3.5])
+    e1, e2 = GestureEvent(1.5, "beat_large_both", 1.5, "beat"), GestureEvent(3.5, "beat_medium_both", 1.5, "beat")
+    live = LivePlan(commit_s=1.2)
+    first = g._arm_track([e1, e2], [], 5.0, beats, live)[0]
+    assert list(live.started) == [1.5]  # e1's preparation started before the next plan; e2's has not
+    # the next plan puts another unit near e1's beat and drops e2
+    other = GestureEvent(1.52, "beat_small_r", 1.0, "beat")
+    events = live.keep_started([other], arms, 0.0, 5.0)
+    assert events == [e1]
+    t = np.arange(0, 2.2, 0.01)  # e1's gesture (e2's preparation starts later)
+    live.commit_s = 1.3
+    np.testing.assert_allclose(g._arm_track(events, [], 5.0, beats, live)[0].sample(t), first.sample(t))
+    assert (
+        np.abs(g._arm_track([other], [], 5.0, beats, LivePlan(commit_s=1.3))[0].sample(t) - first.sample(t)).max()
+        > 0.05
+    )
+    # a window that starts later sees it on its own clock; one that ends before it does not
+    assert live.keep_started([], arms, 1.0, 5.0) == [dataclasses.replace(e1, t_s=0.5)]
+    assert live.keep_started([other], arms, 0.0, 1.4) == [other]
+
+
 def test_live_plan_expects_a_beat_in_each_word_not_heard_yet():
     """Words reach a stream with the chunk they start in, about 0.1 s before the beat they bring is heard: a
     live plan expects it ``WORD_BEAT_S`` after the word's start, and keeps an expected beat that got a stroke

@@ -111,13 +111,14 @@ def test_played_frames_are_never_revised_and_later_ones_are(cfg, tts):
 def test_plans_share_a_live_plan_that_commits_the_frames_played(cfg, tts):
     """At exactly real time a beat is heard only about 0.15 s before the robot must move for it: the planner tells
     the generator which frames are played, so strokes seen too late for their preparation start from the held
-    pose after them, and words not heard yet bring expected beats (the invariant itself is tested on the
-    generator, ``test_live_plan_changes_nothing_before_the_committed_frames``)."""
+    pose after them, words not heard yet bring expected beats, and gestures under way stay (the invariants
+    themselves are tested on the generator, ``test_live_plan_changes_nothing_before_the_committed_frames``)."""
     pl, played = _stream_with_player(cfg, tts, lookahead_s=0.25, words=True)
     live = pl.live
     assert live is not None and live.commit_s == pytest.approx(max(played) / pl.feed.fps, abs=0.05)
     assert any(scale > 0.0 for scale in live.placed.values())  # strokes placed late, from the held pose
     assert live.expected_s  # strokes on beats expected from words not heard yet
+    assert live.started  # gestures under way, kept by the plans after
     for k, q in played.items():
         np.testing.assert_array_equal(pl.feed.q_rad[k], q)
 
