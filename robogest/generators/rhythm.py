@@ -631,18 +631,20 @@ class RhythmGenerator(Generator):
             # Preparation: a slower move into the prep pose whose speed peak leads an earlier acoustic beat,
             # so it never adds a peak off the beat. Without such a beat the stroke starts from the held pose.
             need = max(c.min_prep_s, self._min_time_s(tr.last_v, prep_pose) / c.prep_speed_ratio)
-            key = (round(e.t_s + off_s, 2), e.unit)
-            late = live.placed.get(key) if live is not None else 0.0
-            if late is None:  # first seen by this live plan: too late for its preparation (or relaxation)?
-                prep = self._prep_beat(moves_s, tr.last_t, s0, need, self._path(tr.last_v, prep_pose)[1])
-                first = relax[0] - relax[1] if relax else (s0 if prep is None else prep[1])
-                late = 0.0 if first >= live.commit_s - off_s - 1e-6 else -1.0  # type: ignore[union-attr]
+            late = live.placed.get((round(e.t_s + off_s, 2), e.unit)) if live is not None else 0.0
             prep = None
-            if late == 0.0:  # as offline: a preparation on an earlier beat, if one fits
+            if late is None or late == 0.0:  # as offline: relax if the gap is long, then prepare on an earlier beat
+                held_t, held_v = (relax[0] + relax[1], READY) if relax else (tr.last_t, tr.last_v)
+                prep = self._prep_beat(moves_s, held_t, s0, need, self._path(held_v, prep_pose)[1])
+                move = relax[0] - relax[1] if relax else (s0 if prep is None else prep[1])  # the motion's start
+                if late is None:  # first seen by this live plan: too late for its preparation (or relaxation)?
+                    late = 0.0 if move >= live.commit_s - off_s - 1e-6 else -1.0  # type: ignore[union-attr]
+            if late != 0.0:
+                prep = None
+            else:
                 if relax:
                     tr.add(relax[0] - relax[1], tr.last_v)
                     tr.add(relax[0] + relax[1], READY)
-                prep = self._prep_beat(moves_s, tr.last_t, s0, need, self._path(tr.last_v, prep_pose)[1])
                 if prep is not None:
                     tr.add(prep[1], tr.last_v)
                     tr.add(s0, prep_pose)
@@ -666,8 +668,9 @@ class RhythmGenerator(Generator):
                     continue
                 tr.add(s0, tr.last_v)
                 tr.add(s1, stroke_pose)
+                if late != 0.0 or not relax:  # else the motion starts with the relaxation
+                    move = s0
             if live is not None:
-                move = relax[0] - relax[1] if late == 0.0 and relax else prep[1] if prep is not None else s0
                 live.note(dataclasses.replace(e, t_s=e.t_s + off_s), late, move + off_s, s0 + off_s, expected_s)
             placed.append((s0, s1, e))
             tr.add(hold_end, stroke_pose)
