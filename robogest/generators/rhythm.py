@@ -36,7 +36,8 @@ from robogest.generators.poses import DOF, HEAD_DOFS, N_DOF, READY, REST, dofs_t
 from robogest.generators.tags import align_words, parse_tags, sentences
 from robogest.motion.human_motion import HumanMotion
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
-from robogest.speech.types import Speech
+from robogest.speech.stress import stress_fraction
+from robogest.speech.types import Speech, Word
 
 
 @dataclass(frozen=True)
@@ -171,11 +172,18 @@ SEMANTIC_SPACING_S = 1.0
 LOUDNESS_SMOOTH_S = 0.3
 #: Band loudness (dB) below this is digital silence (a stream's zero padding), not part of the voice's range.
 DIGITAL_SILENCE_DB = -100.0
-#: Live plans: a word not heard yet is expected to bring a beat this long after its start, seconds. Calibrated on
-#: the BEAT2 calibration half only, streamed at real time (``bench_live.bench_sync``'s stream, 10 seeds): 0.05 /
-#: 0.08 / 0.11 s gave stroke-sync z 2.51 / 2.93 / 2.87 (the median offset of its stressed vowels from the starts
-#: of content words is 0.08 s, of function words 0.03 s).
+#: Live plans: a word not heard yet in which eSpeak NG stresses no syllable (most function words) is expected to
+#: bring a beat this long after its start, seconds. Calibrated on the BEAT2 calibration half only, streamed at real
+#: time (``bench_live.bench_sync``'s stream, 10 seeds), when every word was expected this way: 0.05 / 0.08 / 0.11 s
+#: gave stroke-sync z 2.51 / 2.93 / 2.87 (the median offset of its stressed vowels from the starts of content words
+#: is 0.08 s, of function words 0.03 s).
 WORD_BEAT_S = 0.08
+#: Live plans: a word whose stressed syllable has not been heard yet is expected to bring a beat this long after
+#: that syllable's estimated onset (:func:`~robogest.speech.stress.stress_fraction` of the word's span), seconds.
+#: Calibrated on the BEAT2 calibration half only, streamed at real time, 6 seeds: -0.03 / 0 / +0.03 s gave
+#: stroke-sync z 3.27 / 3.51 / 3.08 (word-start beats: 2.42), with a word counted as heard 0.1 s after its
+#: start; counted as heard only 0.1 s after its stressed syllable, 0 s gave 4.14 (offline 3.99).
+STRESS_BEAT_S = 0.0
 #: Live plans: a stroke seen too late for its natural length is shortened (and scaled down alike, so its peak
 #: speed stays) to no less than this, seconds, or skipped.
 MIN_LATE_STROKE_S = 0.1
@@ -198,10 +206,12 @@ class LivePlan:
     A live stream hears each beat only about 0.15 s before the robot must move for it, too late for the
     preparation an offline plan gives a stroke, and the frames already sent are final. So a live plan (i) lets
     no new stroke change the motion before :attr:`commit_s`: a stroke first seen after its preparation should
-    have started goes straight from the held pose, shortened if it must be; (ii) expects a beat
-    :data:`WORD_BEAT_S` after each word that has started but not been heard yet, which gives about 0.1 s more
-    warning; (iii) remembers how it placed each stroke, which gestures have started and which expected beats
-    got one, so later plans, which hear more, keep what has started playing.
+    have started goes straight from the held pose, shortened if it must be; (ii) expects a beat on the stressed
+    syllable of each word that has started but whose stressed syllable has not been heard yet (its place in the
+    word from eSpeak NG's lexicon, :mod:`robogest.speech.stress`; :data:`WORD_BEAT_S` after the start of a word
+    without one), which gives the look-ahead plus the word's lead on its stressed syllable as warning; (iii)
+    remembers how it placed each stroke, which gestures have started and which expected beats got one, so later
+    plans, which hear more, keep what has started playing.
 
     Attributes
     ----------
@@ -340,18 +350,29 @@ class RhythmGenerator(Generator):
         )
 
     @staticmethod
-    def _expected_beats(ab: AcousticBeats, speech: Speech, live: LivePlan) -> tuple[AcousticBeats, set[float]]:
-        """``ab`` plus a beat :data:`WORD_BEAT_S` after each word not heard yet that has none, and the expected
-        beats a stroke was already placed on (replacing heard beats within 0.12 s of them). Also returns the
-        expected beats, on the utterance's clock (rounded to 1 ms)."""
+    def stressed_syllable_s(w: Word) -> float | None:
+        """Where word ``w``'s stressed syllable starts, s: its span shared among its phonemes in eSpeak NG's
+        lexicon (:func:`~robogest.speech.stress.stress_fraction`) plus :data:`STRESS_BEAT_S`; None when eSpeak
+        stresses none of its syllables."""
+        f = stress_fraction(w.text)
+        return None if f is None else w.start_s + f * (w.end_s - w.start_s) + STRESS_BEAT_S
+
+    def _expected_beats(self, ab: AcousticBeats, speech: Speech, live: LivePlan) -> tuple[AcousticBeats, set[float]]:
+        """``ab`` plus a beat on the stressed syllable (:meth:`stressed_syllable_s`; :data:`WORD_BEAT_S` after the
+        start of a word in which eSpeak NG stresses no syllable) of each word that has no beat and whose syllable
+        is not heard yet, and the expected beats a stroke was already placed on (replacing heard beats within
+        0.12 s of them). Also returns the expected beats, on the utterance's clock (rounded to 1 ms)."""
         off, heard = speech.offset_s, speech.heard_s
         t, p = list(ab.t_s), list(ab.prominence)
         expected = {s for s in live.expected_s if off <= s < off + speech.duration_s}
         if heard is not None:
             for w in speech.words:
-                # a word's first beat is heard about 0.1 s after it starts (0.05 s in, confirmed 0.05 s later)
-                if w.start_s + 0.1 > heard and not any(w.start_s - 0.1 <= b <= w.end_s for b in t):
-                    expected.add(round(w.start_s + WORD_BEAT_S + off, 3))
+                # a beat is heard about 0.1 s after it starts (a rise 0.05 s in, confirmed 0.05 s later)
+                syl = self.stressed_syllable_s(w)
+                if (w.start_s if syl is None else syl) + 0.1 > heard and not any(
+                    w.start_s - 0.1 <= b <= w.end_s for b in t
+                ):
+                    expected.add(round((w.start_s + WORD_BEAT_S if syl is None else syl) + off, 3))
         for e in sorted(expected):
             keep = [i for i, b in enumerate(t) if abs(b + off - e) > 0.12]
             t, p = [t[i] for i in keep] + [e - off], [p[i] for i in keep] + [0.5]

@@ -15,7 +15,8 @@ At exactly real time a beat is heard only about 0.15 s before the frames that mu
 too late for the preparation an offline plan gives its stroke. So the planner shares a
 :class:`~robogest.generators.rhythm.LivePlan` with the generator across the utterance's plans: the frames
 played so far are committed (a new stroke goes straight from the held pose after them, shortened if it must
-be), each word not heard yet is expected to bring a beat, and gestures the robot has started stay as placed
+be), each word whose stressed syllable has not been heard yet is expected to bring a beat there (from the word's
+timing and eSpeak NG's lexicon, :mod:`robogest.speech.stress`), and gestures the robot has started stay as placed
 whatever later plans hear.
 
 The work per plan is bounded, whatever the utterance's length: generation starts at the latest pause in which

@@ -357,8 +357,8 @@ class Robot:
             tone = (0.3 * np.sin(2 * np.pi * 180 * t) * (np.sin(2 * np.pi * 3 * t) > 0)).astype(np.float32)
             st = SpeechStream(sr, lookahead_s=self.lookahead_s)
             pl = StreamingPlanner(self.config, self._rhythm, self._ik, st)
-            for i in range(0, len(tone), 1600):
-                if st.feed(tone[i : i + 1600]):
+            for i in range(0, len(tone), 1600):  # a word too: plans place its stressed syllable with eSpeak NG
+                if st.feed(tone[i : i + 1600], words=[("hello", 0.1, 0.6)] if i == 0 else None):
                     pl.plan()
             st.close()
             pl.plan()

@@ -343,19 +343,25 @@ def test_live_plan_keeps_a_gesture_the_robot_has_started():
 
 def test_live_plan_expects_a_beat_in_each_word_not_heard_yet():
     """Words reach a stream with the chunk they start in, about 0.1 s before the beat they bring is heard: a
-    live plan expects it ``WORD_BEAT_S`` after the word's start, and keeps an expected beat that got a stroke
-    when the heard one comes (the stroke has started)."""
-    from robogest.generators.rhythm import WORD_BEAT_S, LivePlan
+    live plan expects it on the word's stressed syllable (eSpeak NG's lexicon, placed by the word's phonemes)
+    until that is heard, or ``WORD_BEAT_S`` after the start of a word with none, and keeps an expected beat that
+    got a stroke when the heard one comes (the stroke has started)."""
+    from robogest.generators.rhythm import STRESS_BEAT_S, WORD_BEAT_S, LivePlan
+    from robogest.speech.stress import stress_fraction
 
-    words = [("one", 0.45, 0.8), ("two", 0.95, 1.3), ("three", 1.96, 2.4)]
-    heard = dataclasses.replace(build_speech(3.0, [0.5, 1.0], [], words), heard_s=2.0)
+    words = [("one", 0.45, 0.8), ("two", 0.95, 1.3), ("about", 1.96, 2.4), ("the", 2.5, 2.6)]
+    at = 1.96 + stress_fraction("about") * 0.44 + STRESS_BEAT_S  # 'ɐ b ˈaʊ t': half-way through the word
+    assert at > 1.96 + WORD_BEAT_S + 0.1
+    heard = dataclasses.replace(build_speech(3.0, [0.5, 1.0], [], words), heard_s=1.9)
     g = RhythmGenerator()
     live = LivePlan()
     ab, expected = g._expected_beats(g.beats(heard), heard, live)
-    assert expected == {round(1.96 + WORD_BEAT_S, 3)}
-    np.testing.assert_allclose(ab.t_s, [*g.beats(heard).t_s, 1.96 + WORD_BEAT_S], atol=1e-9)
-    whole = build_speech(3.0, [0.5, 1.0, 2.05], [], words)
+    assert expected == {round(at, 3), round(2.5 + WORD_BEAT_S, 3)}
+    np.testing.assert_allclose(ab.t_s, [*g.beats(heard).t_s, at, 2.5 + WORD_BEAT_S], atol=1e-9)
+    later = dataclasses.replace(heard, heard_s=2.1)  # the word's start is heard, its stressed syllable not yet
+    assert round(at, 3) in g._expected_beats(g.beats(later), later, LivePlan())[1]
+    whole = build_speech(3.0, [0.5, 1.0, at + 0.05, 2.55], [], words)
     assert g._expected_beats(g.beats(whole), whole, live)[1] == set()  # heard now, and no stroke was placed on it
-    live.expected_s.add(round(1.96 + WORD_BEAT_S, 3))
+    live.expected_s.add(round(at, 3))
     ab = g._expected_beats(g.beats(whole), whole, live)[0]
-    assert np.sum(np.abs(ab.t_s - 2.05) < 0.12) == 1 and np.any(np.isclose(ab.t_s, 1.96 + WORD_BEAT_S))
+    assert np.sum(np.abs(ab.t_s - at - 0.05) < 0.12) == 1 and np.any(np.isclose(ab.t_s, at))
