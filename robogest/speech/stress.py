@@ -17,6 +17,7 @@ import re
 import threading
 
 from robogest.errors import MissingDependencyError
+from robogest.speech._espeak_worker import _AUDIO_OUTPUT_SYNCHRONOUS, _CHARS_UTF8, _EE_OK, _INITIALIZE_DONT_EXIT
 
 #: A vowel lasts about this many consonants when a word's duration is shared among its phonemes. On the words of
 #: the BEAT2 sample's calibration half (0-32 s) that carry a stressed vowel, 1 / 1.5 / 2 / 3 put its onset off
@@ -26,9 +27,6 @@ VOWEL_WEIGHT = 2.0
 
 _VOWELS = frozenset("aeiouɐɑɒæəɘɚɛɜɝɞɪɨʉʊʌɔøœɤɵʏᵻ")
 _PRIMARY = "ˈ"
-_AUDIO_OUTPUT_SYNCHRONOUS = 2
-_INITIALIZE_DONT_EXIT = 0x8000
-_CHARS_UTF8 = 1
 _IPA_SEPARATED = 2 | (ord("_") << 8)  # IPA, phonemes separated by "_"
 _lock = threading.Lock()  # eSpeak NG is not thread-safe (nor is a first initialisation)
 
@@ -42,7 +40,7 @@ def _espeak() -> ctypes.CDLL:
     lib = ctypes.cdll.LoadLibrary(lib_path)
     if lib.espeak_Initialize(_AUDIO_OUTPUT_SYNCHRONOUS, 0, data_path.encode(), _INITIALIZE_DONT_EXIT) < 0:
         raise MissingDependencyError(f"eSpeak NG at {lib_path} failed to initialise with data {data_path}")
-    if lib.espeak_SetVoiceByName(b"en-us") != 0:
+    if lib.espeak_SetVoiceByName(b"en-us") != _EE_OK:
         raise MissingDependencyError(f"eSpeak NG data at {data_path} has no en-us voice")
     lib.espeak_TextToPhonemes.restype = ctypes.c_char_p
     lib.espeak_TextToPhonemes.argtypes = [ctypes.POINTER(ctypes.c_void_p), ctypes.c_int, ctypes.c_int]
