@@ -369,10 +369,9 @@ class RhythmGenerator(Generator):
             for w in speech.words:
                 # a beat is heard about 0.1 s after it starts (a rise 0.05 s in, confirmed 0.05 s later)
                 syl = self.stressed_syllable_s(w)
-                if (w.start_s if syl is None else syl) + 0.1 > heard and not any(
-                    w.start_s - 0.1 <= b <= w.end_s for b in t
-                ):
-                    expected.add(round((w.start_s + WORD_BEAT_S if syl is None else syl) + off, 3))
+                heard_from, at = (w.start_s, w.start_s + WORD_BEAT_S) if syl is None else (syl, syl)
+                if heard_from + 0.1 > heard and not any(w.start_s - 0.1 <= b <= w.end_s for b in t):
+                    expected.add(round(at + off, 3))
         for e in sorted(expected):
             keep = [i for i, b in enumerate(t) if abs(b + off - e) > 0.12]
             t, p = [t[i] for i in keep] + [e - off], [p[i] for i in keep] + [0.5]
