@@ -341,6 +341,29 @@ def test_live_plan_keeps_a_gesture_the_robot_has_started():
     assert live.keep_started([other], arms, 0.0, 1.4) == [other]
 
 
+def test_beats_add_the_stressed_syllables_the_onset_detector_missed():
+    """When words are known, a word's stressed syllable with no acoustic beat near it is a beat (issue 13: strokes
+    on stressed syllables), one a stroke can take; a live plan (``stressed=False``) expects these instead, and a
+    stream's speech gets them only for the syllables heard."""
+    from robogest.generators.rhythm import HEARD_AFTER_S, STRESS_NEAR_S, STRESS_PROMINENCE
+    from robogest.speech.stress import stress_fraction
+
+    words = [("table", 0.45, 0.8), ("about", 1.5, 1.94)]
+    at = 1.5 + stress_fraction("about") * 0.44  # 'ɐ b ˈaʊ t'
+    near = 0.45 + stress_fraction("table") * 0.35  # 't ˈeɪ b əl': by the acoustic beat at 0.5 s
+    sp = build_speech(3.0, [0.5], [], words)
+    g = RhythmGenerator(gesture_rate=3.0)
+    acoustic = g.beats(sp, stressed=False)
+    assert np.abs(acoustic.t_s - near).min() < STRESS_NEAR_S and np.abs(acoustic.t_s - at).min() > STRESS_NEAR_S
+    ab = g.beats(sp)
+    np.testing.assert_allclose(ab.t_s, np.sort([*acoustic.t_s, at]), atol=1e-9)  # "table" has its acoustic beat
+    assert ab.prominence[np.isclose(ab.t_s, at)] == pytest.approx([STRESS_PROMINENCE])
+    assert any(np.isclose(e.t_s, at) for _, _, e in g.strokes(sp, seed=0))
+    not_yet = dataclasses.replace(sp, heard_s=at + HEARD_AFTER_S - 0.01)
+    assert not np.any(np.isclose(g.beats(not_yet).t_s, at))
+    assert np.any(np.isclose(g.beats(dataclasses.replace(sp, heard_s=at + HEARD_AFTER_S + 0.01)).t_s, at))
+
+
 def test_live_plan_expects_a_beat_in_each_word_not_heard_yet():
     """Words reach a stream with the chunk they start in, about 0.1 s before the beat they bring is heard: a
     live plan expects it on the word's stressed syllable (eSpeak NG's lexicon, placed by the word's phonemes)
@@ -355,13 +378,15 @@ def test_live_plan_expects_a_beat_in_each_word_not_heard_yet():
     heard = dataclasses.replace(build_speech(3.0, [0.5, 1.0], [], words), heard_s=1.9)
     g = RhythmGenerator()
     live = LivePlan()
-    ab, expected = g._expected_beats(g.beats(heard), heard, live)
+    ab, expected = g._expected_beats(g.beats(heard, stressed=False), heard, live)
     assert expected == {round(at, 3), round(2.5 + WORD_BEAT_S, 3)}
-    np.testing.assert_allclose(ab.t_s, [*g.beats(heard).t_s, at, 2.5 + WORD_BEAT_S], atol=1e-9)
+    np.testing.assert_allclose(ab.t_s, [*g.beats(heard, stressed=False).t_s, at, 2.5 + WORD_BEAT_S], atol=1e-9)
     later = dataclasses.replace(heard, heard_s=2.1)  # the word's start is heard, its stressed syllable not yet
-    assert round(at, 3) in g._expected_beats(g.beats(later), later, LivePlan())[1]
+    assert round(at, 3) in g._expected_beats(g.beats(later, stressed=False), later, LivePlan())[1]
     whole = build_speech(3.0, [0.5, 1.0, at + 0.05, 2.55], [], words)
-    assert g._expected_beats(g.beats(whole), whole, live)[1] == set()  # heard now, and no stroke was placed on it
+    assert (
+        g._expected_beats(g.beats(whole, stressed=False), whole, live)[1] == set()
+    )  # heard now, and no stroke was placed on it
     live.expected_s.add(round(at, 3))
-    ab = g._expected_beats(g.beats(whole), whole, live)[0]
+    ab = g._expected_beats(g.beats(whole, stressed=False), whole, live)[0]
     assert np.sum(np.abs(ab.t_s - at - 0.05) < 0.12) == 1 and np.any(np.isclose(ab.t_s, at))
