@@ -233,13 +233,14 @@ def _sync_setup():
     return robot, ik, gen, z_of
 
 
-def _streamed(robot, gen, ik, sp, seed: int, rate: float = 1.0, ahead_s: float | None = None):
+def _streamed(robot, gen, ik, sp, seed: int, rate: float = 1.0, ahead_s: float | None = None, planners=None):
     """The feed a live session plans for ``sp`` streamed in 20 ms chunks, words given with the chunk in which they
     start (as TTS engines that report word timings do).
 
     The agent delivers audio ``rate`` times faster than real time; the player runs L behind the first chunk (or
     ``ahead_s`` behind the audio, the same as a first ``ahead_s`` seconds delivered at once) and the frames it has
-    used (up to the online limiter's look-ahead beyond it) are final.
+    used (up to the online limiter's look-ahead beyond it) are final. ``planners``: a list the planner is appended
+    to, for diagnostics.
     """
     from robogest.live.planner import StreamingPlanner
     from robogest.safety.online import LOOKAHEAD_S
@@ -247,6 +248,8 @@ def _streamed(robot, gen, ik, sp, seed: int, rate: float = 1.0, ahead_s: float |
 
     st = SpeechStream(sp.sr)
     pl = StreamingPlanner(robot, gen, ik, st, seed=seed)
+    if planners is not None:
+        planners.append(pl)
     behind = st.lookahead_s if ahead_s is None else ahead_s
     words = list(sp.words)
     step = round(0.02 * sp.sr)
