@@ -24,21 +24,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
-def hits(t: np.ndarray, events: np.ndarray, window_s: tuple[float, float]) -> np.ndarray:
-    """``(N,)`` whether an event follows each time of ``t (N,)`` s within ``window_s``."""
-    return np.array([np.any((events - x >= window_s[0]) & (events - x <= window_s[1])) for x in t], bool)
-
-
-def in_speech(t: np.ndarray, silent_spans) -> np.ndarray:
-    """The times of ``t`` outside the silent spans."""
-    return t[[not any(a <= x < b for a, b in silent_spans) for x in t]]
-
-
 def main(argv: list[str]) -> int:
     import bench_live as bl
 
     from robogest.backends.mujoco_sim import wrist_site_positions
-    from robogest.eval.beats import STROKE_SYNC_WINDOW_S, stroke_peaks
+    from robogest.eval.beats import in_speech, stroke_hit_rate, stroke_peaks
     from robogest.live.planner import TrajectoryFeed
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -61,39 +51,39 @@ def main(argv: list[str]) -> int:
 
     TrajectoryFeed.splice = recording_splice
     robot, ik, gen, _ = bl._sync_setup()
-    lead, (w0, w1) = gen.config.stroke_lead_s, STROKE_SYNC_WINDOW_S
+    lead = gen.config.stroke_lead_s
     clips = bl._sync_clips((), beat2=True)
     if not clips:
         print("needs ../shared/data/beat2 (absent): nothing to do")
         return 0
     print(f"BEAT2 halves, seeds {seeds}, stream at {args.rate:g}x real time; hit = a stressed vowel follows within "
-          f"{w0:g}-{w1:g} s")  # fmt: skip
+          "the stroke-sync window")  # fmt: skip
     for name, sp, events in clips:
-        rows = {k: [0, 0, 0, 0, 0, 0] for k in ("offline", "streamed")}  # planned n/hits, stroke n/hits, other n/hits
+        keys = ("offline", "streamed") if args.rate == 1.0 else ("offline",)
+        pooled = {(k, c): [] for k in keys for c in ("planned", "stroke", "other")}  # times, pooled over seeds
         rewrites.clear()
         for seed in seeds:
             planned_off = np.array([e.t_s - lead for _, _, e in gen.strokes(sp, seed)])
             planners: list = []
             feed = bl._streamed(robot, gen, ik, sp, seed, args.rate, planners=planners)
             arms = [e for e in planners[0].live.started.values() if gen.repertoire.units[e.unit].channel == "arms"]
-            planned_live = np.array([e.t_s - lead for e in arms])
-            runs = [("offline", bl._offline(robot, gen, sp, seed), planned_off)]
+            runs = {"offline": (bl._offline(robot, gen, sp, seed), planned_off)}
             if args.rate == 1.0:
-                runs.append(("streamed", bl._played(robot, feed), planned_live))
-            for key, goals, planned in runs:
-                peaks = in_speech(stroke_peaks(wrist_site_positions(robot, goals), 100.0), sp.silent_spans)
+                runs["streamed"] = (bl._played(robot, feed), np.array([e.t_s - lead for e in arms]))
+            for key, (goals, planned) in runs.items():
+                peaks = stroke_peaks(wrist_site_positions(robot, goals), 100.0)
+                peaks = peaks[in_speech(peaks, sp.silent_spans)]
                 on = np.array([planned.size > 0 and np.abs(planned - p).min() < 0.05 for p in peaks], bool)
-                r, hp, hk = rows[key], hits(planned, events, (w0, w1)), hits(peaks, events, (w0, w1))
-                r[0] += planned.size
-                r[1] += hp.sum()
-                r[2] += on.sum()
-                r[3] += hk[on].sum()
-                r[4] += (~on).sum()
-                r[5] += hk[~on].sum()
+                pooled[key, "planned"].append(planned)
+                pooled[key, "stroke"].append(peaks[on])
+                pooled[key, "other"].append(peaks[~on])
         print(f"\n{name}")
         print(f"  {'':<10}{'planned strokes':>22}{'peaks on a stroke':>22}{'other peaks':>22}")
-        for key, r in rows.items() if args.rate == 1.0 else list(rows.items())[:1]:
-            cells = [f"{n:>5} hit {h / max(n, 1):.2f}" for n, h in ((r[0], r[1]), (r[2], r[3]), (r[4], r[5]))]
+        for key in keys:
+            cells = []
+            for c in ("planned", "stroke", "other"):
+                t = np.concatenate(pooled[key, c])
+                cells.append(f"{t.size:>5} hit {stroke_hit_rate(t, events):.2f}")
             print(f"  {key:<10}" + "".join(f"{c:>22}" for c in cells))
         rw = np.array(rewrites)
         print(f"  each plan rewrites the next 0.3 s of goals by {np.median(rw):.2f} deg (median), "

@@ -306,7 +306,8 @@ def stroke_peaks(wrist_pos: np.ndarray, fps: float, smooth_s: float = 0.05) -> n
     return np.sort(np.concatenate(out)) if out else np.zeros(0)
 
 
-def _in_speech(t: np.ndarray, silent_spans: Sequence[tuple[float, float]]) -> np.ndarray:
+def in_speech(t: np.ndarray, silent_spans: Sequence[tuple[float, float]]) -> np.ndarray:
+    """``(N,)`` whether each time of ``t (N,)`` s lies outside the silent spans."""
     ok = np.ones(t.shape, dtype=bool)
     for a, b in silent_spans:
         ok &= ~((t >= a) & (t < b))
@@ -339,7 +340,7 @@ def stroke_hit_rate(
     if hi < lo:
         raise InputError(f"stroke sync window {window_s}: the end must not precede the start")
     p = np.asarray(peaks_s, dtype=np.float64)
-    p = p[_in_speech(p, silent_spans)]
+    p = p[in_speech(p, silent_spans)]
     ev = np.sort(np.asarray(events_s, dtype=np.float64).ravel())
     if p.size == 0:
         return float("nan")
@@ -412,7 +413,7 @@ def stroke_sync(
         "chance": res["null_mean"],
         "chance_std": res["null_std"],
         "z": res["z"],
-        "n_peaks": int(_in_speech(peaks, spans).sum()),
+        "n_peaks": int(in_speech(peaks, spans).sum()),
         "n_onsets": int(np.asarray(onsets_s).size),
         "window_s": list(win),
         "n_shifts": res["n_shifts"],
