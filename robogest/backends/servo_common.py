@@ -148,7 +148,7 @@ class ServoBackend(Backend):
         )
         self.late_reply_quiet_s = 0.025
         self.stale_replies = 0  #: status packets discarded as late answers to earlier requests
-        self.stale_bytes = 0  #: bytes drained while waiting for the line to go quiet
+        self.stale_bytes = 0  #: bytes of late replies dropped before a request
         self._late: dict[tuple[int, int], tuple[int, float]] = {}  # (id, reply length) -> (address, until)
 
         servos = [bus.servos[n] for n in robot.joint_names]
@@ -254,7 +254,7 @@ class ServoBackend(Backend):
             close_port(port)
 
     # --- raw transactions: every reply is matched to its request ---------------------------------
-    def _begin(self, expect: list[int], n_params: int, addr: int, *, widen: bool = False) -> int:
+    def _begin(self, expect: list[int], n_params: int, addr: int, *, widen: bool = False, ordered: bool = False) -> int:
         """Clear the input before a request expecting ``n_params`` bytes from servos ``expect``; returns
         how many bytes below ``addr`` a read must also ask for.
 
@@ -263,19 +263,26 @@ class ServoBackend(Backend):
         still in flight from one of these servos has the expected length but answers another address,
         a read (``widen``) also asks for the byte(s) below ``addr`` so that its answer has a length no
         late reply has; a write instead drains the input until the line has been quiet for
-        ``late_reply_quiet_s``.
+        ``late_reply_quiet_s``. For a sync read (``ordered``) a late reply of the expected length
+        clashes even at the same address: coming ahead of the others, it would pass for this round's
+        answer, and since servos answer in order, the servos before it would look lost.
         """
         now = time.monotonic()
         for key in [k for k, (_, until) in self._late.items() if until < now]:
             del self._late[key]
 
         def clash(k: int) -> bool:
-            return any(self._late.get((sid, n_params + k), (addr - k,))[0] != addr - k for sid in expect)
+            late = [self._late[key][0] for key in ((sid, n_params + k) for sid in expect) if key in self._late]
+            return any(ordered or a != addr - k for a in late)
 
         k = 0
         while clash(k) and widen and k < addr:
             k += 1
-        self._port.ser.reset_input_buffer()
+        ser = self._port.ser
+        waiting = ser.in_waiting
+        if waiting:  # late replies that arrived after their deadline: counted, then dropped
+            self.stale_bytes += len(ser.read(waiting))
+        ser.reset_input_buffer()
         if clash(k):
             self._drain_quiet()
             self._late.clear()
@@ -322,10 +329,12 @@ class ServoBackend(Backend):
             if pid == sid and len(params) == n_params:
                 self._port.is_using = False
                 return params, True, err, "ok"
-            self.stale_replies += 1
-            self.events.append(
-                f"discarded a late reply ({len(params)} bytes from id {pid}) while waiting for {self._who(sid)}"
-            )
+            self._discard_stale(pkt, self._who(sid))
+
+    def _discard_stale(self, pkt: list[int], waiting_for: str) -> None:
+        pid, _, params = self._split_status(pkt)
+        self.stale_replies += 1
+        self.events.append(f"discarded a late reply ({len(params)} bytes from id {pid}) waiting for {waiting_for}")
 
     def _read_block_raw(self, sid: int, addr: int, size: int) -> tuple[list[int], bool, int, str]:
         """``size`` bytes from ``addr`` of one servo, as sent (bus byte order)."""
@@ -384,7 +393,7 @@ class ServoBackend(Backend):
             return {i: self._read_raw(i, reg) for i in ids}
         self._prep()
         addr, size = reg.value
-        k = self._begin(ids, size, addr, widen=True)
+        k = self._begin(ids, size, addr, widen=True, ordered=True)
         addr, size = addr - k, size + k
         group = self.sdk.GroupSyncRead(self._port, self._ph, addr, size)
         for sid in ids:
@@ -395,7 +404,14 @@ class ServoBackend(Backend):
             return {sid: (0, False, 0, self._ph.getTxRxResult(comm)) for sid in ids}
         id_at = self.STATUS_LAYOUT[0]
         pkt_len = self.STATUS_LAYOUT[2] + size + self.STATUS_LAYOUT[3]
-        got = collect_status_packets(ids, self._rx_packet, self._port.isPacketTimeout, id_at, length=pkt_len)
+        got = collect_status_packets(
+            ids,
+            self._rx_packet,
+            self._port.isPacketTimeout,
+            id_at,
+            length=pkt_len,
+            on_stale=lambda pkt: self._discard_stale(pkt, f"a sync read of {reg.name}"),
+        )
         self._port.is_using = False
         out: dict[int, Raw] = {}
         for sid in ids:
@@ -808,6 +824,7 @@ def collect_status_packets(
     timed_out: Callable[[], bool],
     id_at: int,
     length: int | None = None,
+    on_stale: Callable[[list[int]], None] | None = None,
 ) -> dict[int, list[int] | None]:
     """Match the status packets of one sync read to servo ids: ``{id: packet, or None when missing/corrupt}``.
 
@@ -817,22 +834,23 @@ def collect_status_packets(
     packet goes to the id it names. Servos answer in the order asked, so a reply from a later id
     means the earlier missing ones are not coming, and no time is spent waiting for them. With
     ``length``, a valid packet of another length is a late reply to another request and is skipped.
+    Each valid packet skipped is handed to ``on_stale``.
     """
     pending = list(ids)
     out: dict[int, list[int] | None] = {}
     while pending:
         pkt, valid = receive()
         sid = pkt[id_at] if len(pkt) > id_at else None
-        if valid and length is not None and len(pkt) != length:
-            continue  # a late reply to another request
+        if valid and (sid not in pending or (length is not None and len(pkt) != length)):
+            if on_stale is not None:
+                on_stale(list(pkt))  # a late reply to another request
+            continue
         if sid in pending:
             j = pending.index(sid)
             for earlier in pending[:j]:
                 out[earlier] = None
             out[sid] = list(pkt) if valid else None
             del pending[: j + 1]
-        elif valid:
-            continue  # stale packet of another transaction
         if not valid and timed_out():
             break
     for sid in pending:

@@ -37,6 +37,25 @@ def test_late_replies_of_5_to_20_ms_cause_no_false_stop(tmp_path, family, protoc
     assert backend.stale_replies > 0  # ... and late replies really arrived during later requests
 
 
+def time_out_and_release_before_the_next_request(backend, bus: VirtualBus, monkeypatch, sid: int, reg) -> None:
+    """Read ``reg`` of servo ``sid`` with its reply held back by the bus until the read has timed out, then have
+    the backend's next request find that late reply ahead of its own answers (``monkeypatch.undo()`` ends it)."""
+    bus.faults.delay_min_s = bus.faults.delay_max_s = 60.0  # held back by the bus
+    bus.faults.delay_p = 1.0
+    assert not backend._read_raw(sid, reg)[1]  # timed out; its reply is still queued
+    bus.faults.delay_p = 0.0
+    begin = backend._begin
+
+    def begin_then_release_the_late_reply(*args, **kwargs):
+        k = begin(*args, **kwargs)
+        with bus._lock:  # the late reply goes out now, ahead of the answers to this request
+            bus._outq[0] = (time.monotonic(), *bus._outq[0][1:])
+            bus._line_free_at = time.monotonic()
+        return k
+
+    monkeypatch.setattr(backend, "_begin", begin_then_release_the_late_reply)
+
+
 def test_late_reply_of_the_same_length_is_never_used(tmp_path, monkeypatch):
     """A late Present Voltage reply (1 byte) must not answer a Present Temperature read (1 byte)."""
     robot = make_robot(tmp_path, family="feetech", protocol=0.0, n_joints=2)
@@ -45,24 +64,34 @@ def test_late_reply_of_the_same_length_is_never_used(tmp_path, monkeypatch):
         backend.connect()
         try:
             volt, temp = backend.REG["voltage"], backend.REG["temperature"]
-            bus.faults.delay_min_s = bus.faults.delay_max_s = 60.0  # held back by the bus
-            bus.faults.delay_p = 1.0
-            assert not backend._read_raw(1, volt)[1]  # timed out; its reply is still queued
-            bus.faults.delay_p = 0.0
-            begin = backend._begin
-
-            def begin_then_release_the_late_reply(*args, **kwargs):
-                k = begin(*args, **kwargs)
-                with bus._lock:  # the voltage reply goes out now, ahead of the temperature reply
-                    bus._outq[0] = (time.monotonic(), *bus._outq[0][1:])
-                    bus._line_free_at = time.monotonic()
-                return k
-
-            monkeypatch.setattr(backend, "_begin", begin_then_release_the_late_reply)
+            time_out_and_release_before_the_next_request(backend, bus, monkeypatch, 1, volt)
             value, ok, _, _ = backend._read_raw(1, temp)
             monkeypatch.undo()
             assert ok and value == bus.servo(1).get("temperature") != bus.servo(1).get("voltage")
             assert backend.stale_replies == 1  # the late voltage reply arrived first, and was skipped
+        finally:
+            backend.shutdown()
+
+
+@pytest.mark.parametrize(("family", "protocol"), CHAINS)
+def test_late_reply_to_the_same_read_does_not_make_a_sync_read_lose_servos(tmp_path, monkeypatch, family, protocol):
+    """Servo 3's late position reply, arriving ahead of a sync read's answers, used to pass for its answer
+    and (servos answer in order) make servos 1 and 2 look lost: two re-reads with no fault (CI, a starved
+    machine). Now the read asks for one more byte, so the late reply has another length and is skipped."""
+    robot = make_robot(tmp_path, family=family, protocol=protocol, n_joints=4)
+    with VirtualBus(robot) as bus:
+        backend = get_backend_factory(family)(robot, port=bus.port)
+        backend.connect()
+        try:
+            present = backend.REG["present"]
+            time_out_and_release_before_the_next_request(backend, bus, monkeypatch, 3, present)
+            retries = backend.retry_count
+            got = backend._sync_read_raw(present, [1, 2, 3, 4])
+            monkeypatch.undo()
+            assert all(got[sid][1] for sid in (1, 2, 3, 4)), got
+            assert backend.retry_count == retries and backend.stale_replies == 1
+            q = backend.ticks_to_rad(np.array([got[sid][0] for sid in (1, 2, 3, 4)]))
+            np.testing.assert_allclose(q, robot.rest_q_rad, atol=0.05)
         finally:
             backend.shutdown()
 
