@@ -52,6 +52,10 @@ VELOCITY_FEEDFORWARD = 0.25
 #: How far ahead of the loop time a control loop samples a trajectory, seconds (see "Tracking").
 LOOKAHEAD_S = 0.075
 _OK = (ruckig.Result.Working, ruckig.Result.Finished)
+#: Ruckig's exception (its own class since 0.19, not a RuntimeError), and what older versions raised.
+_RUCKIG_ERRORS = (ruckig.RuckigError, RuntimeError, ValueError)
+#: On a refused input, ruckig is asked once more with acceleration and jerk limits this much lower (relative).
+_NUDGE = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -286,12 +290,29 @@ class OnlineLimiter:
         q = np.where(arrived, goal, rel.q_rad + goal + tv * t)
         return MotionState(q, np.where(arrived, 0.0, rel.v_rad_s + tv), np.where(arrived, 0.0, rel.a_rad_s2))
 
-    def _advance(self, inp: ruckig.InputParameter) -> MotionState | None:
+    def _calculate(self, inp: ruckig.InputParameter, traj: ruckig.Trajectory) -> bool:
+        """Plan ``inp`` into ``traj``; False when ruckig cannot.
+
+        Ruckig's step 1 finds no profile on some inputs that sit exactly on the boundary between two
+        profile shapes (found by hypothesis: a rest-to-rest move whose acceleration just reaches its
+        limit as the velocity does). Limits a hair lower move it off that boundary and stay safe.
+        """
         try:
-            res = self._otg.calculate(inp, self._traj)
-        except (RuntimeError, ValueError):  # ruckig raises on inputs it refuses
-            return None
-        if res not in _OK:
+            return self._otg.calculate(inp, traj) in _OK
+        except _RUCKIG_ERRORS:
+            pass
+        a, j = inp.max_acceleration, inp.max_jerk
+        inp.max_acceleration = [x * (1.0 - _NUDGE) for x in a]
+        inp.max_jerk = [x * (1.0 - _NUDGE) for x in j]
+        try:
+            return self._otg.calculate(inp, traj) in _OK
+        except _RUCKIG_ERRORS:
+            return False
+        finally:
+            inp.max_acceleration, inp.max_jerk = a, j
+
+    def _advance(self, inp: ruckig.InputParameter) -> MotionState | None:
+        if not self._calculate(inp, self._traj):
             return None
         q, v, a = self._traj.at_time(self.period_s)
         out = MotionState(np.array(q), np.array(v), np.array(a))
@@ -304,11 +325,9 @@ class OnlineLimiter:
         inp = self._still_inp
         inp.current_position, inp.current_velocity, inp.current_acceleration = _lists(s)
         inp.target_position = np.asarray(target_q_rad, dtype=float).tolist()
-        try:
-            res = self._otg.calculate(inp, self._still_traj)
-        except (RuntimeError, ValueError):
+        if not self._calculate(inp, self._still_traj):
             return None
-        return np.asarray(self._still_traj.independent_min_durations) if res in _OK else None
+        return np.asarray(self._still_traj.independent_min_durations)
 
     def _keep_rest_within_reach(self, s: MotionState, cand: MotionState) -> MotionState:
         """Joints whose candidate could not be at rest within ``stop_within_s`` take the time-optimal step towards
@@ -332,11 +351,7 @@ class OnlineLimiter:
         inside = (s.q_rad >= self.q_min_rad) & (s.q_rad <= self.q_max_rad)
         inp = self._brake_inp
         inp.current_position, inp.current_velocity, inp.current_acceleration = _lists(s)
-        try:
-            res = self._otg.calculate(inp, self._traj)
-        except (RuntimeError, ValueError):
-            return np.zeros(self.n_joints, dtype=bool)
-        if res not in _OK:
+        if not self._calculate(inp, self._traj):
             return np.zeros(self.n_joints, dtype=bool)
         ext = self._traj.position_extrema
         lo = np.array([e.min for e in ext])

@@ -442,3 +442,17 @@ def test_the_stop_envelope_cuts_gestures_short_only_beyond_its_reach():
     assert np.all(np.abs(lim.clamp_target(far) - robot.rest_q_rad) <= reach)
     with pytest.raises(InputError, match="stop_within_s"):
         OnlineLimiter.for_robot(robot, 0.01, robot.rest_q_rad, stop_within_s=0.015)
+
+
+def test_a_move_on_ruckigs_knife_edge_is_planned_not_raised():
+    """Found by hypothesis (CI): with jerk = 20 x acceleration, a rest-to-rest move whose acceleration just reaches
+    its limit as the velocity does makes ruckig 0.19's step 1 raise ``RuckigError`` (not a RuntimeError), so
+    building this limiter crashed. It is planned with limits a hair lower instead."""
+    a = 17.29462777080277
+    rest = -0.650469435983421
+    lim = OnlineLimiter([-0.6575101172870303], [-0.4747296581230917], [1.9357858369736631], [a], [20 * a], 0.01, [rest],
+                        rest_q_rad=[rest], stop_within_s=0.2)  # fmt: skip
+    reach = lim.reach_rad(0.2)
+    assert 0.08 < reach[0] < 0.09  # the move that ruckig refused, 0.0865 rad, is inside this bisection
+    assert lim.time_to_reach_s([rest + reach[0]]) <= 0.2 + 1e-6
+    assert lim.fallbacks == 0
