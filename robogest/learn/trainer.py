@@ -213,7 +213,12 @@ def train(cfg: TrainConfig, spec: ModelSpec, log: Callable[[str], None] | None =
     info, device = D.setup(cfg.device)
     say = (log or (lambda s: print(s, flush=True))) if info.is_main else (lambda s: None)
     try:
-        return _train(cfg, spec, info, device, say, torch)
+        result = _train(cfg, spec, info, device, say, torch)
+        # Every rank done with its collectives before any takes the group down: a rank that destroyed it and
+        # exited while rank 0 was still writing its last checkpoint once died of SIGABRT in gloo's threads
+        # ("terminate called without an active exception", CI-class machine under load).
+        D.barrier(info)
+        return result
     finally:
         D.teardown(info)
 
