@@ -151,6 +151,40 @@ def test_drift_speed_follows_the_voice_loudness(k, lo, hi):
     assert lo < loud / quiet < hi, (loud, quiet)
 
 
+def test_drift_speeds_up_on_every_beat_and_gives_the_turn_back():
+    """With no gestures planned, the wrists' drift has a speed peak on each beat (``stroke_lead_s`` before
+    it), 1.5 times as fast as without ``drift_beat_rad`` at least, and the turn is given back: well after the
+    last beat the motion is the same as without it (so a live plan's beats change the motion only near them)."""
+    from robogest.eval.beats import stroke_peaks
+    from robogest.generators.rhythm import DRIFT_RETURN_S, DRIFT_RETURN_WIDTH_S
+
+    sp = build_speech(8.0, [1.0, 1.8, 2.6, 3.4], [])
+    kw = dict(fps=100.0, gesture_rate=0.0, head_beat_prob=0.0, sway_rad=0.0, drift_loudness=0.0)
+    g, flat = RhythmGenerator(**kw), RhythmGenerator(**kw, drift_beat_rad=0.0)
+    assert g.plan(sp) == []
+    beats = g.beats(sp).t_s - g.config.stroke_lead_s
+    assert len(beats) >= 3
+    m, m0 = g.generate(sp, seed=0), flat.generate(sp, seed=0)
+
+    def wrists(motion):
+        return motion.positions()[:, [motion.skeleton.index("l_wrist"), motion.skeleton.index("r_wrist")]]
+
+    peaks = stroke_peaks(wrists(m), m.fps)
+    assert all(np.min(np.abs(peaks - b)) < 0.03 for b in beats), (peaks, beats)
+    k = np.round(beats * m.fps).astype(int)
+    v, v0 = wrist_speed_cm_s(m)[k], wrist_speed_cm_s(m0)[k]
+    assert np.all(v > 1.5 * v0), (v, v0)  # the circle alone is not faster there
+    after = m.t_s > beats.max() + DRIFT_RETURN_S + 6 * DRIFT_RETURN_WIDTH_S
+    np.testing.assert_allclose(wrists(m)[after], wrists(m0)[after], atol=1e-6)
+
+
+def test_drift_beat_out_of_range_is_input_error():
+    from robogest.errors import InputError
+
+    with pytest.raises(InputError, match=r"drift_beat_rad must be within \[0, 1\] rad.*got 1.5 and 0.05"):
+        RhythmGenerator(drift_beat_rad=1.5)
+
+
 def test_preparation_leads_an_earlier_beat_and_is_slower_than_its_stroke():
     from robogest.generators.rhythm import GestureEvent
 
