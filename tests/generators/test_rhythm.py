@@ -423,3 +423,32 @@ def test_live_plan_expects_a_beat_in_each_word_not_heard_yet():
     live.expected_s.add(round(at, 3))
     ab = g._expected_beats(g.beats(whole, stressed=False), whole, live)[0]
     assert np.sum(np.abs(ab.t_s - at - 0.05) < 0.12) == 1 and np.any(np.isclose(ab.t_s, at))
+
+
+def test_a_live_plan_speeds_its_drift_up_only_on_the_beats_it_expects(monkeypatch):
+    """A heard beat comes too late for the drift's speed-up, so a live plan speeds up only on the beats it expects
+    (here the stressed syllable of "about" and the start of "the"), with ``live_drift_m_s``; offline, on every
+    beat with ``drift_m_s``."""
+    from robogest.generators.rhythm import LivePlan
+
+    words = [("one", 0.45, 0.8), ("two", 0.95, 1.3), ("about", 1.96, 2.4), ("the", 2.5, 2.6)]
+    heard = dataclasses.replace(build_speech(3.0, [0.5, 1.0], [], words), heard_s=1.9)
+    g = RhythmGenerator(fps=50.0)
+    calls = []
+    sway = g._sway
+
+    def spy(t, rests, rng, loud, t0_s=0.0, beats_s=None, drift_m_s=None):
+        calls.append((np.asarray(beats_s), drift_m_s))
+        return sway(t, rests, rng, loud, t0_s, beats_s, drift_m_s)
+
+    monkeypatch.setattr(g, "_sway", spy)
+    live = LivePlan()
+    _, expected = g._expected_beats(g.beats(heard, stressed=False), heard, LivePlan())
+    g.generate(heard, seed=0, live=live)
+    beats_s, speed = calls[-1]
+    assert len(expected) == 2 and speed == g.config.live_drift_m_s == 0.3
+    np.testing.assert_allclose(beats_s, sorted(expected), atol=1e-9)  # not the heard beats at 0.5 and 1.0 s
+    g.generate(heard, seed=0)
+    beats_s, speed = calls[-1]
+    assert speed == g.config.drift_m_s == 0.45
+    np.testing.assert_allclose(beats_s, g.beats(heard).t_s)
