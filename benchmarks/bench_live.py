@@ -313,7 +313,8 @@ def bench_sync(
     vs streamed on the same audio and words: mean, worst seed, and the paired difference with its standard error.
     Streamed in real time (the worst case) and at 2x real time (TTS engines usually synthesize faster). Clips:
     :func:`_sync_clips` (BEAT2's words are streamed with the chunk they start in, as for TTS). ``beat2`` adds the
-    BEAT2 halves: 57 min more in one run on the 2-core machine, so ``make bench`` leaves them out; run by hand."""
+    BEAT2 halves: over an hour more on the 2-core machine (one half streamed 10 times at 2x real time took 19 min
+    with a second benchmark running), so ``make bench`` leaves them out; run by hand."""
     robot, ik, gen, z_of = _sync_setup()
     for name, sp, events in _sync_clips(texts, beat2):
         runs: dict[str, list[float]] = {"offline": [], "streamed, real time": [], "streamed, 2x real time": []}
