@@ -847,15 +847,15 @@ class RhythmGenerator(Generator):
         rests: list[tuple[float, float]],
         rng: np.random.Generator,
         loud: np.ndarray,
-        t0_s: float = 0.0,
-        beats_s: np.ndarray | None = None,
-        drift_m_s: float | None = None,
+        t0_s: float,
+        beats_s: np.ndarray,
+        drift_m_s: float,
     ) -> np.ndarray:
         """Idle breathing/sway ``(T, D)`` while speaking: fades in over 0.4 s away from rest, and is
         exactly zero inside rest windows and at both ends (the motion starts and ends at rest). ``loud (T,)``
         in [0, 1] is the voice's loudness, which the wrist drift's speed follows (``drift_loudness``); the drift
-        also speeds up on each of ``beats_s (B,)``, seconds on ``t``'s clock (``drift_beat_rad``); ``drift_m_s``
-        replaces the config's. Phases run
+        also speeds up on each of ``beats_s (B,)``, seconds on ``t``'s clock (``drift_beat_rad``), and runs at
+        ``drift_m_s`` (the config's, or ``live_drift_m_s`` for a live plan). Phases run
         on the utterance's clock (``t + t0_s``, ``t0_s`` = :attr:`Speech.offset_s`), so a streaming planner that
         generates from a later start gets the same sway where the two overlap."""
         end = t[-1] if len(t) else 0.0
@@ -880,11 +880,10 @@ class RhythmGenerator(Generator):
         # so every replan of a stream that heard more would shift the circle's phase under the frames playing.
         c = self.config
         w = 2 * np.pi * c.drift_hz
-        speed = c.drift_m_s if drift_m_s is None else drift_m_s
-        r = 0.0 if c.gestures == "none" else speed * c.amount / w  # circle radius, m (scales with amount)
+        r = 0.0 if c.gestures == "none" else drift_m_s * c.amount / w  # circle radius, m (scales with amount)
         size = 1.0 - c.drift_loudness + 2.0 * c.drift_loudness * loud  # (T,) radius scale
         theta = w * ta
-        if beats_s is not None and c.drift_beat_rad > 0:
+        if c.drift_beat_rad > 0:
             theta = theta + c.drift_beat_rad * self._beat_turns(t, np.asarray(beats_s) - c.stroke_lead_s)
         for k, side in enumerate("lr"):
             out[:, DOF[f"{side}_elbow"]] = r / 0.27 * size * np.sin(theta + ph[4 + 2 * k])

@@ -19,7 +19,6 @@ from tests.backends.conftest import sine_traj
 
 CHAINS = [("dynamixel", 2.0), ("feetech", 0.0)]
 FAST = 4.0  # trajectory seconds per wall second
-SHORTEST_STATUS_BYTES = {"dynamixel": 11, "feetech": 6}  # a status packet with no parameters
 
 
 def injected_reply_faults(bus: VirtualBus) -> int:
@@ -47,7 +46,8 @@ def test_five_percent_reply_faults_on_eleven_servos_complete(tmp_path, family, p
     # starved test machine delivered after its deadline is lost too: it is retried and later dropped as stale,
     # either skipped during a later request or dropped before one (counted in bytes: at most one reply per
     # shortest status packet's worth).
-    late = backend.stale_replies + backend.stale_bytes // SHORTEST_STATUS_BYTES[family]
+    _, _, p0, trailer = backend.STATUS_LAYOUT  # a status packet with no parameters has p0 + trailer bytes
+    late = backend.stale_replies + backend.stale_bytes // (p0 + trailer)
     assert faults > 0 and 0 < report.retries <= faults + late
     assert report.missed_reads <= faults
     assert any("re-reading" in e for e in report.errors)

@@ -437,7 +437,7 @@ def test_a_live_plan_speeds_its_drift_up_only_on_the_beats_it_expects(monkeypatc
     calls = []
     sway = g._sway
 
-    def spy(t, rests, rng, loud, t0_s=0.0, beats_s=None, drift_m_s=None):
+    def spy(t, rests, rng, loud, t0_s, beats_s, drift_m_s):
         calls.append((np.asarray(beats_s), drift_m_s))
         return sway(t, rests, rng, loud, t0_s, beats_s, drift_m_s)
 
