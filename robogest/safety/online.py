@@ -52,7 +52,7 @@ VELOCITY_FEEDFORWARD = 0.25
 #: How far ahead of the loop time a control loop samples a trajectory, seconds (see "Tracking").
 LOOKAHEAD_S = 0.075
 _OK = (ruckig.Result.Working, ruckig.Result.Finished)
-#: Ruckig's exception (its own class since 0.19, not a RuntimeError), and what older versions raised.
+#: Ruckig's exception (its own class since 0.19, not a RuntimeError), and the two this code caught before it.
 _RUCKIG_ERRORS = (ruckig.RuckigError, RuntimeError, ValueError)
 #: On a refused input, ruckig is asked once more with acceleration and jerk limits this much lower (relative).
 _NUDGE = 1e-9
