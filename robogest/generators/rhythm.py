@@ -134,11 +134,14 @@ class RhythmConfig:
         0.45 m/s, 0.5 rad, 0.05 s gave z 6.45 (worst 5.80), Hellinger 0.27 (0.28), speed 0.87x, acceleration
         1.17x (the steady 0.3 m/s drift without: 4.86 (3.98), 0.36, 0.70x, 0.81x). 0 turns it off.
     live_drift_m_s : float
-        ``drift_m_s`` for the plans of a live stream. A live plan speeds the drift up only on the beats it
-        expects (see :meth:`generate`), too few to keep a faster drift's own speed peaks on the beat. On the BEAT2
-        calibration half streamed in real time (``bench_live``'s measure, 10 seeds): 0.45 m/s with every beat
-        3.86, with the expected beats 4.28, with none 2.80; 0.3 m/s with the expected beats 4.46 (and the steady
-        0.3 m/s drift before ``drift_beat_rad``: 4.11).
+        ``drift_m_s`` for the plans of a live stream, whose drift keeps the radius of mid loudness (it plans
+        frames beyond the audio heard). A live plan speeds the drift up only on the beats heard or expected in
+        time (see :meth:`generate`; in real time mostly the expected ones), too few to keep a faster drift's own
+        speed peaks on the beat. On the BEAT2 calibration half streamed in real time (``bench_live``'s measure,
+        10 seeds), with the radius following the loudness as offline: 0.45 m/s with every beat 3.86, with the
+        expected beats 4.28, with none 2.80; 0.3 m/s with the expected beats 4.46 (the steady 0.3 m/s drift
+        before ``drift_beat_rad``: 4.11); with the steady radius and the speed-ups of
+        :data:`LIVE_DRIFT_RISE_WIDTHS`: 0.3 m/s 5.42, 0.4 m/s 5.12 (7 seeds; 5.37 at 0.3 on the same seeds).
     stroke_lead_s : float
         How far before its acoustic beat an arm stroke's wrist-speed peak is placed (preparations and
         relaxations, which also peak on beats, lead by the same amount). Gesture strokes precede the
@@ -199,6 +202,12 @@ SEMANTIC_SPACING_S = 1.0
 #: half: returning after 0.3 or 0.5 s, over 0.1 or 0.2 s, gave z 6.35-6.59 at 0.3 m/s.
 DRIFT_RETURN_S = 0.3
 DRIFT_RETURN_WIDTH_S = 0.2
+#: Live plans: the drift speeds up on a beat when its speed-up, from this many widths (``drift_beat_s``) before its
+#: peak, comes after the frames played (:meth:`LivePlan.drift_beats`). Calibrated on the BEAT2 calibration half
+#: only, streamed in real time (``bench_live``'s measure, robot goals, 10 seeds), with the drift's radius then still
+#: following the loudness: 0 / 1 / 3 widths gave stroke-sync z 4.22 / 4.67 / 4.46 (before, on the expected beats
+#: whatever was played, and forgotten once heard: 4.46).
+LIVE_DRIFT_RISE_WIDTHS = 1.0
 #: Gaussian smoothing (s) of the loudness the drift's speed follows: phrase-level rises, not each syllable.
 LOUDNESS_SMOOTH_S = 0.3
 #: Band loudness (dB) below this is digital silence (a stream's zero padding), not part of the voice's range.
@@ -251,8 +260,8 @@ class LivePlan:
     syllable of each word that has started but whose stressed syllable has not been heard yet (its place in the
     word from eSpeak NG's lexicon, :mod:`robogest.speech.stress`; :data:`WORD_BEAT_S` after the start of a word
     without one), which gives the look-ahead plus the word's lead on its stressed syllable as warning; (iii)
-    remembers how it placed each stroke, which gestures have started and which expected beats got one, so later
-    plans, which hear more, keep what has started playing.
+    remembers how it placed each stroke, which gestures have started, which expected beats got one and on which
+    beats the drift's speed-up has started, so later plans, which hear more, keep what has started playing.
 
     Attributes
     ----------
@@ -271,6 +280,9 @@ class LivePlan:
         relaxation or stroke) starts before ``commit_s + replan_s``. Later plans keep them as they are, whatever
         they now hear: a beat's prominence is judged against more speech each time, and the choices drawn after
         a changed beat change too, so a plan could drop a gesture the robot is already moving into.
+    drift_s : set of float
+        Beats (rounded to 1 ms) on which the drift's speed-up (``drift_beat_rad``) rises before
+        ``commit_s + replan_s`` (:meth:`drift_beats`): later plans keep them, heard or not.
     """
 
     commit_s: float = -math.inf
@@ -278,6 +290,22 @@ class LivePlan:
     placed: dict[tuple[float, str], float] = field(default_factory=dict)
     expected_s: set[float] = field(default_factory=set)
     started: dict[float, GestureEvent] = field(default_factory=dict)
+    drift_s: set[float] = field(default_factory=set)
+
+    def drift_beats(self, beats_s: np.ndarray, rise_s: float) -> np.ndarray:
+        """The beats ``(B,)`` the drift speeds up on, utterance clock, s, from this plan's ``beats_s (B0,)``, whose
+        speed-ups rise from ``rise_s`` before them: those already rising (:attr:`drift_s`) and those that rise
+        after :attr:`commit_s`, none within 0.12 s of one already rising. Played frames never get a speed-up
+        they did not have (the rest of a rise cut by the splice is blended in), and one that started always
+        finishes, whatever later plans hear."""
+        kept = np.array(sorted(self.drift_s))
+        new = [
+            round(float(b), 3)
+            for b in beats_s
+            if b - rise_s >= self.commit_s and (kept.size == 0 or np.abs(kept - b).min() >= 0.12)
+        ]
+        self.drift_s.update(b for b in new if b - rise_s < self.commit_s + self.replan_s)
+        return np.array(sorted(set(kept.tolist()) | set(new)))
 
     def note(self, e: GestureEvent, late: float, move_s: float, stroke_s: float, expected: frozenset[float]) -> None:
         """Note how arm event ``e`` was placed (all on the utterance clock): its motion starts at ``move_s``, its
@@ -816,13 +844,23 @@ class RhythmGenerator(Generator):
             inside = (t >= s0) & (t <= s1)
             ph = (t[inside] - s0) / (s1 - s0)
             dofs[inside, DOF["head_yaw"]] += amp * np.sin(2 * np.pi * hz * (t[inside] - s0)) * np.sin(np.pi * ph) ** 2
-        # A live plan speeds the drift up only on the beats it expects (stressed syllables of words that have
-        # started): an acoustic beat is heard about 0.15 s before the frames that must move for it, too late for
-        # the speed-up's rise (``live_drift_m_s``).
-        drift_beats = beats if live is None else np.array(sorted(e - speech.offset_s for e in expected))
+        # A live plan speeds the drift up only on the beats whose speed-up rises (from one width before its
+        # peak) after the frames played (:meth:`LivePlan.drift_beats`, :data:`LIVE_DRIFT_RISE_WIDTHS`). In real
+        # time that leaves the beats it expects (stressed syllables of words that have started): an acoustic
+        # beat is heard about 0.15 s before the frames that must move for it, too late. Audio delivered faster
+        # than real time is heard in time.
+        if live is None:
+            drift_beats = beats
+        else:
+            rise_s = c.stroke_lead_s + LIVE_DRIFT_RISE_WIDTHS * c.drift_beat_s
+            drift_beats = live.drift_beats(beats + speech.offset_s, rise_s) - speech.offset_s
         rng = np.random.default_rng(seed + 7919)
         drift_m_s = c.drift_m_s if live is None else c.live_drift_m_s
-        dofs += self._sway(t, rests, rng, self._loudness(db, t), speech.offset_s, drift_beats, drift_m_s)
+        # A live plan's drift keeps a steady radius (that of mid loudness): it plans frames up to 0.6 s beyond the
+        # audio heard, so a radius that followed the loudness was rewritten under the frames about to play at
+        # each plan, and each rewrite put a speed bump off the beats (see ``live_drift_m_s``).
+        loud = self._loudness(db, t) if live is None else np.full(n, 0.5)
+        dofs += self._sway(t, rests, rng, loud, speech.offset_s, drift_beats, drift_m_s)
         rot = dofs_to_rotations(dofs)
         root = np.tile([0.0, CANONICAL_PELVIS_HEIGHT_M, 0.0], (n, 1))
         return HumanMotion(fps=fps, rotations=rot, root_pos_m=root)

@@ -425,30 +425,49 @@ def test_live_plan_expects_a_beat_in_each_word_not_heard_yet():
     assert np.sum(np.abs(ab.t_s - at - 0.05) < 0.12) == 1 and np.any(np.isclose(ab.t_s, at))
 
 
-def test_a_live_plan_speeds_its_drift_up_only_on_the_beats_it_expects(monkeypatch):
-    """A heard beat comes too late for the drift's speed-up, so a live plan speeds up only on the beats it expects
-    (here the stressed syllable of "about" and the start of "the"), with ``live_drift_m_s``; offline, on every
-    beat with ``drift_m_s``."""
-    from robogest.generators.rhythm import LivePlan
+def test_a_live_plan_speeds_its_drift_up_only_where_the_speed_up_comes_after_the_played_frames(monkeypatch):
+    """A live plan speeds the drift up on a beat only if the speed-up rises after the frames played
+    (``commit_s``), heard or expected (here the heard beats at 0.5 and 1.0 s, the stressed syllable of "about"
+    and the start of "the"), with ``live_drift_m_s``; a speed-up that has started stays in later plans, whatever
+    they hear. Its drift keeps a steady radius (mid loudness): it plans frames beyond the audio heard, whose
+    loudness it cannot know. Offline: every beat, with ``drift_m_s``, and a radius that follows the voice."""
+    from robogest.generators.rhythm import LIVE_DRIFT_RISE_WIDTHS, LivePlan
 
     words = [("one", 0.45, 0.8), ("two", 0.95, 1.3), ("about", 1.96, 2.4), ("the", 2.5, 2.6)]
     heard = dataclasses.replace(build_speech(3.0, [0.5, 1.0], [], words), heard_s=1.9)
     g = RhythmGenerator(fps=50.0)
+    c = g.config
+    rise_s = c.stroke_lead_s + LIVE_DRIFT_RISE_WIDTHS * c.drift_beat_s
     calls = []
     sway = g._sway
 
     def spy(t, rests, rng, loud, t0_s, beats_s, drift_m_s):
-        calls.append((np.asarray(beats_s), drift_m_s))
+        calls.append((np.asarray(beats_s), drift_m_s, np.asarray(loud)))
         return sway(t, rests, rng, loud, t0_s, beats_s, drift_m_s)
 
     monkeypatch.setattr(g, "_sway", spy)
-    live = LivePlan()
-    _, expected = g._expected_beats(g.beats(heard, stressed=False), heard, LivePlan())
-    g.generate(heard, seed=0, live=live)
-    beats_s, speed = calls[-1]
-    assert len(expected) == 2 and speed == g.config.live_drift_m_s == 0.3
-    np.testing.assert_allclose(beats_s, sorted(expected), atol=1e-9)  # not the heard beats at 0.5 and 1.0 s
+    ab, expected = g._expected_beats(g.beats(heard, stressed=False), heard, LivePlan())
+    acoustic = [b for b in ab.t_s if round(b, 3) not in expected]
+    assert len(expected) == 2 and len(acoustic) == 2 and abs(acoustic[0] - 0.5) < 0.06
+
+    def drift_beats(commit_s: float) -> np.ndarray:
+        live.commit_s = commit_s
+        g.generate(heard, seed=0, live=live)
+        beats_s, speed, loud = calls[-1]
+        assert speed == c.live_drift_m_s == 0.3
+        np.testing.assert_array_equal(loud, 0.5)
+        return beats_s
+
+    live = LivePlan(replan_s=0.1)
+    # the first beat's speed-up rises in the next 0.1 s: it is kept from now on
+    np.testing.assert_allclose(drift_beats(acoustic[0] - rise_s - 0.05), sorted([*acoustic, *expected]), atol=1e-3)
+    # later, the second acoustic beat comes too late; the first stays though its rise is now played
+    np.testing.assert_allclose(drift_beats(acoustic[1] - rise_s + 0.01), sorted([acoustic[0], *expected]), atol=1e-3)
+    # a beat a plan no longer hears stays, and blocks a new one within 0.12 s of it
+    first, second = sorted(expected)
+    live.drift_s.add(first - 0.05)
+    np.testing.assert_allclose(drift_beats(1.0), [acoustic[0], first - 0.05, second], atol=1e-3)
     g.generate(heard, seed=0)
-    beats_s, speed = calls[-1]
-    assert speed == g.config.drift_m_s == 0.45
+    beats_s, speed, loud = calls[-1]
+    assert speed == c.drift_m_s == 0.45 and np.ptp(loud) > 0.5
     np.testing.assert_allclose(beats_s, g.beats(heard).t_s)
