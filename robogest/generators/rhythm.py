@@ -397,6 +397,9 @@ class RhythmGenerator(Generator):
             )
         if not 0.0 <= c.stroke_lead_s <= 0.5:
             raise InputError(f"stroke_lead_s must be within [0, 0.5] s, got {c.stroke_lead_s}")
+        for key in ("drift_m_s", "live_drift_m_s"):  # a wrist speed: beyond 1 m/s the drift would be a gesture
+            if not 0.0 <= getattr(c, key) <= 1.0:
+                raise InputError(f"{key} must be within [0, 1] m/s, got {getattr(c, key)}")
         self._meaning = None
         self.repertoire = repertoire or lx.default_repertoire()
         self._fk_cache: dict[bytes, tuple[float, float]] = {}

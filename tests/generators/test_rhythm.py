@@ -178,11 +178,15 @@ def test_drift_speeds_up_on_every_beat_and_gives_the_turn_back():
     np.testing.assert_allclose(wrists(m)[after], wrists(m0)[after], atol=1e-6)
 
 
-def test_drift_beat_out_of_range_is_input_error():
+def test_drift_settings_out_of_range_are_input_errors():
     from robogest.errors import InputError
 
     with pytest.raises(InputError, match=r"drift_beat_rad must be within \[0, 1\] rad.*got 1.5 and 0.05"):
         RhythmGenerator(drift_beat_rad=1.5)
+    with pytest.raises(InputError, match=r"live_drift_m_s must be within \[0, 1\] m/s, got -0.1"):
+        RhythmGenerator(live_drift_m_s=-0.1)
+    with pytest.raises(InputError, match=r"^drift_m_s must be within \[0, 1\] m/s, got 2"):
+        RhythmGenerator(drift_m_s=2)
 
 
 def test_preparation_leads_an_earlier_beat_and_is_slower_than_its_stroke():
