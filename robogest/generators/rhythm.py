@@ -206,7 +206,8 @@ DRIFT_RETURN_WIDTH_S = 0.2
 #: peak, comes after the frames played (:meth:`LivePlan.drift_beats`). Calibrated on the BEAT2 calibration half
 #: only, streamed in real time (``bench_live``'s measure, robot goals, 10 seeds), with the drift's radius then still
 #: following the loudness: 0 / 1 / 3 widths gave stroke-sync z 4.22 / 4.67 / 4.46 (before, on the expected beats
-#: whatever was played, and forgotten once heard: 4.46).
+#: whatever was played, and forgotten once heard: 4.46); re-checked with the live plans' steady radius: 4.66 / 5.42 /
+#: 5.35.
 LIVE_DRIFT_RISE_WIDTHS = 1.0
 #: Gaussian smoothing (s) of the loudness the drift's speed follows: phrase-level rises, not each syllable.
 LOUDNESS_SMOOTH_S = 0.3
