@@ -233,6 +233,9 @@ STRESS_BEAT_S = 0.0
 #: beat only in words with no acoustic beat at all 4.14; moving the nearest acoustic beat onto the syllable 3.76-4.00.
 STRESS_NEAR_S = 0.12
 STRESS_PROMINENCE = 0.5
+#: Live plans: a beat within this many seconds of one a plan has already used (a started gesture, an expected beat a
+#: stroke was placed on, a started drift speed-up) is taken for the same beat, heard again a little elsewhere.
+SAME_BEAT_S = 0.12
 #: A beat is heard about this long after it starts (a rise 0.05 s in, confirmed 0.05 s later), seconds.
 HEARD_AFTER_S = 0.1
 #: Live plans: a stroke seen too late for its natural length is shortened (and scaled down alike, so its peak
@@ -296,14 +299,14 @@ class LivePlan:
     def drift_beats(self, beats_s: np.ndarray, rise_s: float) -> np.ndarray:
         """The beats ``(B,)`` the drift speeds up on, utterance clock, s, from this plan's ``beats_s (B0,)``, whose
         speed-ups rise from ``rise_s`` before them: those already rising (:attr:`drift_s`) and those that rise
-        after :attr:`commit_s`, none within 0.12 s of one already rising. Played frames never get a speed-up
-        they did not have (the rest of a rise cut by the splice is blended in), and one that started always
-        finishes, whatever later plans hear."""
+        after :attr:`commit_s`, none within :data:`SAME_BEAT_S` of one already rising. Played frames never get
+        a speed-up they did not have (the rest of a rise cut by the splice is blended in), and one that started
+        always finishes, whatever later plans hear."""
         kept = np.array(sorted(self.drift_s))
         new = [
             round(float(b), 3)
             for b in beats_s
-            if b - rise_s >= self.commit_s and (kept.size == 0 or np.abs(kept - b).min() >= 0.12)
+            if b - rise_s >= self.commit_s and (kept.size == 0 or np.abs(kept - b).min() >= SAME_BEAT_S)
         ]
         self.drift_s.update(b for b in new if b - rise_s < self.commit_s + self.replan_s)
         return np.array(sorted(set(kept.tolist()) | set(new)))
@@ -324,12 +327,12 @@ class LivePlan:
         self, events: list[GestureEvent], arms: set[str], off_s: float, end_s: float
     ) -> list[GestureEvent]:
         """``events`` of a plan over ``[off_s, end_s)`` (its clock starts at ``off_s``) with the started gestures
-        in it put back in place of any arm event (units ``arms``) within 0.12 s of them."""
+        in it put back in place of any arm event (units ``arms``) within :data:`SAME_BEAT_S` of them."""
         kept = [dataclasses.replace(e, t_s=e.t_s - off_s) for t, e in self.started.items() if off_s <= t < end_s]
         if not kept:
             return events
         near = np.array([k.t_s for k in kept])
-        out = [e for e in events if e.unit not in arms or np.abs(near - e.t_s).min() >= 0.12] + kept
+        out = [e for e in events if e.unit not in arms or np.abs(near - e.t_s).min() >= SAME_BEAT_S] + kept
         return sorted(out, key=lambda e: (e.t_s, e.source == "beat"))
 
 
@@ -453,7 +456,7 @@ class RhythmGenerator(Generator):
         """``ab`` plus a beat on the stressed syllable (:meth:`stressed_syllable_s`; :data:`WORD_BEAT_S` after the
         start of a word in which eSpeak NG stresses no syllable) of each word that has no beat and whose syllable
         is not heard yet, and the expected beats a stroke was already placed on (replacing heard beats within
-        0.12 s of them). Also returns the expected beats, on the utterance's clock (rounded to 1 ms)."""
+        :data:`SAME_BEAT_S` of them). Also returns the expected beats, on the utterance's clock (rounded to 1 ms)."""
         off, heard = speech.offset_s, speech.heard_s
         t, p = list(ab.t_s), list(ab.prominence)
         expected = {s for s in live.expected_s if off <= s < off + speech.duration_s}
@@ -464,7 +467,7 @@ class RhythmGenerator(Generator):
                 if heard_from + HEARD_AFTER_S > heard and not any(w.start_s - 0.1 <= b <= w.end_s for b in t):
                     expected.add(round(at + off, 3))
         for e in sorted(expected):
-            keep = [i for i, b in enumerate(t) if abs(b + off - e) > 0.12]
+            keep = [i for i, b in enumerate(t) if abs(b + off - e) > SAME_BEAT_S]
             t, p = [t[i] for i in keep] + [e - off], [p[i] for i in keep] + [0.5]
         order = np.argsort(t, kind="stable")
         return AcousticBeats(np.asarray(t, float)[order], np.asarray(p, float)[order]), expected
