@@ -1,8 +1,9 @@
 """Make the README picture ``docs/demo_frames.png`` from ``out/demo.mp4`` (``make demo``).
 
 Usage: ``python docs/demo_frames.py [out/demo.mp4] [docs/demo_frames.png]``. The times are those of the demo
-sentence with the default generator and seed: two beat strokes, the rest pose held in the first pause (the
-trajectory sits exactly at rest from 5.26 s to 5.66 s) and the next gesture.
+sentence with the default generator and seed: two beat strokes (wrist-speed peaks of the command trajectory at
+0.94 s and 2.02 s), the rest pose held in the first pause (the trajectory sits exactly at rest from 5.06 s to
+5.64 s) and the next gesture (a peak at 6.0 s).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-FRAMES = ((1.9, "stroke"), (2.9, "stroke"), (5.5, "pause, at rest"), (6.3, "next gesture"))
+FRAMES = ((0.94, "stroke"), (2.02, "stroke"), (5.4, "pause, at rest"), (6.0, "next gesture"))
 
 
 def main(video: str = "out/demo.mp4", out: str = "docs/demo_frames.png") -> Path:
