@@ -166,9 +166,11 @@ def test_discriminator_loss_falls_with_the_generator_frozen(two_speakers, tmp_pa
     g_before = [p.detach().clone() for p in net.generator.parameters()]
     with torch.no_grad():
         fake, _, _, _ = net.generator(*S.split_batch(x, c)[:2], y, S.split_batch(x, c)[2])
-    losses = [S.SPEC.discriminator_step(net, opt, fake, y) for _ in range(25)]
+    losses = [S.SPEC.discriminator_step(net, opt, fake, y) for _ in range(40)]
     assert losses[0] > 1.2  # ~2 ln 2 = 1.39: an untrained D cannot tell
-    assert losses[-1] < 0.5 * losses[0]
+    # Judged on the median of the last ten steps: Adam at this rate falls below 0.1 by step 20 but can spike back
+    # for a step (1.26 at step 25 in a fresh install on 2026-12-02, which the last value read as not learning).
+    assert np.median(losses[-10:]) < 0.5 * losses[0]
     assert all(torch.equal(a, b) for a, b in zip(g_before, net.generator.parameters(), strict=True))
 
 
