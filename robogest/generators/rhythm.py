@@ -456,7 +456,8 @@ class RhythmGenerator(Generator):
         """``ab`` plus a beat on the stressed syllable (:meth:`stressed_syllable_s`; :data:`WORD_BEAT_S` after the
         start of a word in which eSpeak NG stresses no syllable) of each word that has no beat and whose syllable
         is not heard yet, and the expected beats a stroke was already placed on (replacing heard beats within
-        :data:`SAME_BEAT_S` of them). Also returns the expected beats, on the utterance's clock (rounded to 1 ms)."""
+        :data:`SAME_BEAT_S` of them), of prominence :data:`STRESS_PROMINENCE` (a stressed syllable with no acoustic
+        evidence yet, as offline). Also returns the expected beats, on the utterance's clock (rounded to 1 ms)."""
         off, heard = speech.offset_s, speech.heard_s
         t, p = list(ab.t_s), list(ab.prominence)
         expected = {s for s in live.expected_s if off <= s < off + speech.duration_s}
@@ -468,7 +469,7 @@ class RhythmGenerator(Generator):
                     expected.add(round(at + off, 3))
         for e in sorted(expected):
             keep = [i for i, b in enumerate(t) if abs(b + off - e) > SAME_BEAT_S]
-            t, p = [t[i] for i in keep] + [e - off], [p[i] for i in keep] + [0.5]
+            t, p = [t[i] for i in keep] + [e - off], [p[i] for i in keep] + [STRESS_PROMINENCE]
         order = np.argsort(t, kind="stable")
         return AcousticBeats(np.asarray(t, float)[order], np.asarray(p, float)[order]), expected
 
