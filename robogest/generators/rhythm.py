@@ -303,13 +303,14 @@ class LivePlan:
         a speed-up they did not have (the rest of a rise cut by the splice is blended in), and one that started
         always finishes, whatever later plans hear."""
         kept = np.array(sorted(self.drift_s))
-        new = [
+        new = {
             round(float(b), 3)
             for b in beats_s
             if b - rise_s >= self.commit_s and (kept.size == 0 or np.abs(kept - b).min() >= SAME_BEAT_S)
-        ]
+        }
+        out = np.array(sorted(self.drift_s | new))
         self.drift_s.update(b for b in new if b - rise_s < self.commit_s + self.replan_s)
-        return np.array(sorted(set(kept.tolist()) | set(new)))
+        return out
 
     def note(self, e: GestureEvent, late: float, move_s: float, stroke_s: float, expected: frozenset[float]) -> None:
         """Note how arm event ``e`` was placed (all on the utterance clock): its motion starts at ``move_s``, its
