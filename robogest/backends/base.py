@@ -11,6 +11,7 @@ before a subclass's :meth:`Backend._send_goal` may write anything.
 from __future__ import annotations
 
 import math
+import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from types import TracebackType
@@ -120,6 +121,17 @@ class Backend(ABC):
         self.control_rate_hz = 50.0
         #: The last goal that passed the guard and was sent, ``(J,)`` radians; None before the first one.
         self.last_goal_rad: np.ndarray | None = None
+        #: Velocity ``(J,)`` rad/s and acceleration ``(J,)`` rad/s² of the goal stream at the last goal (finite
+        #: differences over the control period; None until there are enough goals), and when it was sent
+        #: (``time.monotonic()``): the state a glide to rest takes over from.
+        self.last_goal_v_rad_s: np.ndarray | None = None
+        self.last_goal_a_rad_s2: np.ndarray | None = None
+        self.last_goal_monotonic_s = -math.inf
+        #: Set by the glide to rest that ends a session (:func:`~robogest.backends.control.go_to_rest`, a control
+        #: loop's close): the motion has stopped and only the way to rest is left, so faults already reported
+        #: (a servo lost or flagging a hardware error, a health reading past its limit) no longer abort it; one
+        #: that did would turn torque off with the arms raised. A lost port still does. Reset by ``connect``.
+        self.stopping = False
         self._limits = guard_limits(robot)  # the robot is frozen: build its limit arrays once
 
     @property
@@ -156,9 +168,19 @@ class Backend(ABC):
         A refused goal raises :class:`~robogest.errors.SafetyError` and nothing is written; ``last_goal_rad``
         stays the last goal actually sent, which is where the shutdown ramp to rest starts.
         """
-        q = check_goal(q_rad, self.robot, self._goal_reference(), self.control_period_s, source, self._limits)
+        ref = self._goal_reference()
+        q = check_goal(q_rad, self.robot, ref, self.control_period_s, source, self._limits)
         self._send_goal(q)
+        v_before = self.last_goal_v_rad_s
+        self.last_goal_v_rad_s = (q - ref) / self.control_period_s if self.last_goal_rad is not None else None
+        ok = v_before is not None and self.last_goal_v_rad_s is not None
+        self.last_goal_a_rad_s2 = (self.last_goal_v_rad_s - v_before) / self.control_period_s if ok else None
         self.last_goal_rad = q.copy()
+        self.last_goal_monotonic_s = time.monotonic()
+
+    def confirm_goal(self) -> None:  # noqa: B027 - optional hook
+        """Make sure every joint holds the last goal sent (servo backends read it back and re-send it; raise when
+        they cannot): called before torque goes on, so no joint drives to an older goal."""
 
     @abstractmethod
     def _send_goal(self, q_rad: np.ndarray) -> None:
@@ -167,6 +189,9 @@ class Backend(ABC):
     def _connected(self) -> None:
         """Subclasses call this at the end of :meth:`connect`: goals sent before do not count any more."""
         self.last_goal_rad = None
+        self.last_goal_v_rad_s = None
+        self.last_goal_a_rad_s2 = None
+        self.stopping = False
 
     def _goal_reference(self) -> np.ndarray:
         """The pose the next goal is a step from: the last goal sent; before the first one after connecting, the

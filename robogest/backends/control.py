@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from robogest.backends.base import Backend, check_goal
-from robogest.errors import RobogestError
+from robogest.errors import BackendError, RobogestError
 from robogest.safety.online import LOOKAHEAD_S, OnlineLimiter
 from robogest.trajectory.types import Trajectory, check_matches
 
@@ -141,8 +141,10 @@ def signals_end_at_rest() -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def _tick_section() -> Iterator[None]:
-    """A tick is atomic with respect to signals (main thread): one that arrives inside is raised at its end."""
+def deferred_signals() -> Iterator[None]:
+    """A block that is atomic with respect to signals (main thread): one that arrives inside is raised at its end
+    (a tick, so goal and limiter state never disagree; a shutdown, so the glide and torque off run to the end).
+    Blocks nest; the outermost raises."""
     main = threading.current_thread() is threading.main_thread()
     if main:
         _SIG.critical += 1
@@ -332,6 +334,7 @@ class ControlLoop:
             self.backend.connect()
         q_now = np.clip(self.backend.read_positions(), self.robot.q_min_rad, self.robot.q_max_rad)
         self.backend.write_goal(q_now, source="present pose at start")  # hold, so enabling torque does not jump
+        self.backend.confirm_goal()  # a sync write is not acknowledged: a servo that missed it would jump
         self.backend.set_torque(True)
         self._adopt(q_now)
         self._started = True
@@ -340,10 +343,12 @@ class ControlLoop:
             self._thread.start()
         return self
 
-    def _adopt(self, q_now: np.ndarray) -> None:
+    def _adopt(self, q_now: np.ndarray, v_now: np.ndarray | None = None, a_now: np.ndarray | None = None) -> None:
         self.limiter = OnlineLimiter.for_robot(
             self.robot, self.period_s, q_now, margin_rad=self.margin_rad, stop_within_s=self.stop_within_s
         )
+        if v_now is not None:
+            self.limiter.take_over(self.limiter.q_rad, v_now, np.zeros_like(v_now) if a_now is None else a_now)
         self._hold = self.limiter.q_rad.copy()
         self._wall0 = time.monotonic()
         self._k = 0
@@ -407,18 +412,30 @@ class ControlLoop:
             self._cancel(self._play)
             self._play = None
             self._idle = None
-        try:
-            if self._started and self.limiter is not None:
-                self.rest_problem = self._glide_to_rest()
-        finally:
-            self.backend.shutdown()
+        # A signal that arrives from here on is raised once the robot is at rest with torque off: raised in the
+        # glide, it would start the backend's own glide over from a standstill and could cut the torque-off writes
+        # short (some servos left on).
+        with deferred_signals():
+            try:
+                if self._started and self.limiter is not None:
+                    self.rest_problem = self._glide_to_rest()
+            finally:
+                self.backend.shutdown()
         return self.rest_problem
 
     def __enter__(self) -> ControlLoop:
-        return self.start()
+        try:
+            return self.start()
+        except BaseException:
+            self.close()  # start() may fail after torque went on (a servo that missed its write): turn it off
+            raise
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, et: type[BaseException] | None, *exc: object) -> None:
+        problem = self.close()
+        if et is None and self._error is not None:
+            raise self._error  # the loop failed (and went to rest) while the block went on: say so
+        if et is None and problem:
+            raise BackendError(f"{self.robot.name}: {problem}; torque off attempted")
 
     # --- running -----------------------------------------------------------------------------------
     def step(self) -> None:
@@ -487,7 +504,7 @@ class ControlLoop:
                 self._k += skip
                 self.stats.skipped_slots += skip
             self.stats.starts.append(now)
-        with _tick_section():
+        with deferred_signals():
             self._tick()
         self._k += 1
         if not self.backend.realtime:
@@ -580,18 +597,28 @@ class ControlLoop:
             self._rest = PlayHandle(self, None, None)
             self._rest.phase = "run"
             rest = self._rest
-        limit = int(REST_TIMEOUT_S * self.rate_hz) + 1
+        self.backend.stopping = True  # faults already reported no longer cut the glide short (Backend.stopping)
+        timeout_s = self._rest_timeout_s()
         try:
-            for _ in range(limit):
+            for _ in range(int(timeout_s * self.rate_hz) + 1):
                 if rest.done:
                     break
                 self._tick_paced()
         except RobogestError as e:
             return f"could not reach rest ({e})"
         if not rest.done:
-            return f"did not reach rest within {REST_TIMEOUT_S:g} s"
+            return f"did not reach rest within {timeout_s:.3g} s"
         self._settle()
         return None
+
+    def _rest_timeout_s(self) -> float:
+        """How long the glide to rest may take before it is given up: :data:`REST_TIMEOUT_S`, or longer for slow
+        limits (1.5 times the time-optimal bound, plus 2 s): a timeout turns torque off away from rest."""
+        try:
+            bound = self.limiter.time_to_reach_s(self.rest_q_rad)
+        except RobogestError:
+            return REST_TIMEOUT_S
+        return max(REST_TIMEOUT_S, 1.5 * bound + 2.0)
 
     def _settle(self, tol_rad: float = 0.02, timeout_s: float = 0.5) -> None:
         """Hold rest until the joints get there (servos lag their goal), so torque goes off at rest."""
@@ -608,17 +635,27 @@ def go_to_rest(backend: Backend, rate_hz: float | None = None) -> str | None:
     """Glide ``backend`` from its last goal (or present pose) to rest within every limit; the one go-to-rest.
 
     For a backend without a running :class:`ControlLoop` (every backend's ``shutdown`` calls it; after a loop's
-    own glide it finds the robot at rest and returns at once). The start is taken to be still. ``rate_hz``
-    defaults to the backend's control rate (so per-tick steps stay what its guard expects). Torque is left as it
-    is. Returns None at rest, else why not.
+    own glide it finds the robot at rest and returns at once). It starts from the last goal, moving and
+    accelerating as the goal stream did if that goal was sent within the last two control periods (a simulated
+    backend: always), so the goals brake within the acceleration limit instead of stopping dead; else still.
+    ``rate_hz`` defaults to the backend's control rate (so per-tick steps stay what its guard expects). Torque
+    is left as it is.
+    Returns None at rest, else why not.
     """
     loop = ControlLoop(backend, rate_hz or getattr(backend, "control_rate_hz", DEFAULT_RATE_HZ), threaded=False)
     last = getattr(backend, "last_goal_rad", None)
+    v0 = getattr(backend, "last_goal_v_rad_s", None)
+    a0 = getattr(backend, "last_goal_a_rad_s2", None)
+    recent = time.monotonic() - getattr(backend, "last_goal_monotonic_s", -np.inf) <= 2 * backend.control_period_s
     try:
         q0 = np.asarray(last if last is not None else backend.read_positions(), dtype=float)
     except RobogestError as e:
         return f"could not reach rest ({e})"
-    loop._adopt(np.clip(q0, backend.robot.q_min_rad, backend.robot.q_max_rad))
+    moving = last is not None and v0 is not None and (recent or not backend.realtime)
+    if moving and a0 is not None:  # a backward difference is the velocity half a period back
+        v0 = v0 + 0.5 * a0 * backend.control_period_s
+    loop._adopt(np.clip(q0, backend.robot.q_min_rad, backend.robot.q_max_rad), v0 if moving else None,
+                a0 if moving else None)  # fmt: skip
     loop._started = True
     return loop._glide_to_rest()
 
@@ -630,6 +667,7 @@ __all__ = [
     "Interrupted",
     "LoopStats",
     "PlayHandle",
+    "deferred_signals",
     "deliver_signal",
     "go_to_rest",
     "signals_end_at_rest",

@@ -6,6 +6,7 @@ sign conventions per protocol, and Protocol 1.0 having no sync read (positions a
 
 from __future__ import annotations
 
+import math
 from enum import Enum
 from typing import Any
 
@@ -57,6 +58,7 @@ class DynamixelBackend(ServoBackend):
             "load": R.PRESENT_LOAD,
             "min": XReg.MIN_POSITION_LIMIT if p2 else P1Reg.CW_ANGLE_LIMIT,
             "max": XReg.MAX_POSITION_LIMIT if p2 else P1Reg.CCW_ANGLE_LIMIT,
+            "speed_cap": XReg.PROFILE_VELOCITY if p2 else P1Reg.MOVING_SPEED,
         }
 
     @classmethod
@@ -67,7 +69,8 @@ class DynamixelBackend(ServoBackend):
             raise ConfigError(f"unknown Dynamixel model {name!r}; known: {', '.join(MODELS)}")
         if m.protocol != protocol:
             raise ConfigError(f"{m.name} speaks Protocol {m.protocol}, bus says {protocol}")
-        return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick)
+        return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick,
+                          m.speed_unit_rpm * 2 * math.pi / 60, m.speed_max_units)  # fmt: skip
 
     def _packet_protocol(self) -> float:
         return self.protocol

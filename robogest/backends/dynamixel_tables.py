@@ -147,15 +147,18 @@ class DxlModel:
     ticks_per_rev: float
     centre_tick: int
     max_tick: int
+    #: Speed-cap register (X: Profile Velocity; AX/MX: Moving Speed) unit in rev/min, and its largest value.
+    speed_unit_rpm: float
+    speed_max_units: int
 
 
 MODELS: dict[str, DxlModel] = {
     m.name: m
     for m in (
-        DxlModel("XL430-W250", 1060, 2.0, 4096, 2048, 4095),
-        DxlModel("XM430-W350", 1020, 2.0, 4096, 2048, 4095),
-        DxlModel("XL330-M288", 1200, 2.0, 4096, 2048, 4095),
-        DxlModel("AX-12A", 12, 1.0, 1024 * 360 / 300, 512, 1023),
-        DxlModel("MX-28", 29, 1.0, 4096, 2048, 4095),
+        DxlModel("XL430-W250", 1060, 2.0, 4096, 2048, 4095, 0.229, 32767),
+        DxlModel("XM430-W350", 1020, 2.0, 4096, 2048, 4095, 0.229, 32767),
+        DxlModel("XL330-M288", 1200, 2.0, 4096, 2048, 4095, 0.229, 32767),
+        DxlModel("AX-12A", 12, 1.0, 1024 * 360 / 300, 512, 1023, 0.111, 1023),
+        DxlModel("MX-28", 29, 1.0, 4096, 2048, 4095, 0.114, 1023),
     )
 }

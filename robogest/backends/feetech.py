@@ -6,6 +6,7 @@ re-asserts this bus's order; positions and speeds are sign-magnitude (bit 15) on
 
 from __future__ import annotations
 
+import math
 from enum import Enum
 from typing import Any
 
@@ -38,6 +39,7 @@ class FeetechBackend(ServoBackend):
             "load": R.PRESENT_LOAD,
             "min": R.MIN_POSITION_LIMIT,
             "max": R.MAX_POSITION_LIMIT,
+            "speed_cap": R.GOAL_VELOCITY,
         }
         self._R = R
 
@@ -49,7 +51,8 @@ class FeetechBackend(ServoBackend):
             raise ConfigError(f"unknown Feetech model {name!r}; known: {', '.join(MODELS)}")
         if m.protocol_end != int(protocol):
             raise ConfigError(f"{m.name} uses protocol {m.protocol_end}, bus says {protocol:g}")
-        return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick)
+        return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick,
+                          2 * math.pi / m.ticks_per_rev, m.speed_max_units)  # fmt: skip
 
     def _packet_protocol(self) -> int:
         return self._end

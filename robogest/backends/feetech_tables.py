@@ -130,6 +130,8 @@ class FtModel:
     ticks_per_rev: float
     centre_tick: int
     max_tick: int
+    #: Largest value of the Goal Velocity register (the speed cap; its unit is one position step per second).
+    speed_max_units: int = 32767
 
 
 MODELS: dict[str, FtModel] = {
@@ -137,6 +139,6 @@ MODELS: dict[str, FtModel] = {
     for m in (
         FtModel("STS3215", 777, 0, 4096, 2048, 4095),
         FtModel("STS3250", 2825, 0, 4096, 2048, 4095),
-        FtModel("SCS0009", 1284, 1, 1024 * 360 / 300, 512, 1023),
+        FtModel("SCS0009", 1284, 1, 1024 * 360 / 300, 512, 1023, 1023),
     )
 }

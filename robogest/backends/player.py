@@ -143,16 +143,22 @@ def play(
         finally:
             if sound is not None:
                 sound.stop()
+            late: Interrupted | None = None
             try:
                 problem = loop.close()
+            except Interrupted as e:  # arrived during the glide to rest: raised once at rest with torque off
+                problem, late = loop.rest_problem, e
             finally:
                 _finish(report, backend, loop, wall0)
-            if isinstance(interrupted, Interrupted):
-                interrupted.outcome = (
-                    f"the robot {problem}; torque off attempted"
-                    if problem
-                    else "the robot went to rest and torque is off"
-                )
+            for it in (interrupted, late):
+                if isinstance(it, Interrupted):
+                    it.outcome = (
+                        f"the robot {problem}; torque off attempted"
+                        if problem
+                        else "the robot went to rest and torque is off"
+                    )
+            if late is not None and interrupted is None and report.completed:
+                raise late  # the play itself had ended: the signal is what the caller must hear of
     return report
 
 

@@ -36,6 +36,17 @@ class ServoModel:
     ticks_per_rev: float
     centre_tick: int
     max_tick: int
+    #: One unit of the servo's own speed-cap register (``REG["speed_cap"]``), rad/s at the servo horn.
+    speed_unit_rad_s: float
+    #: Largest value that register takes.
+    speed_max_units: int
+
+
+#: The servos' own speed cap, set at connect, is the joint's velocity limit times this: goals already keep to
+#: the limit on average, and the cap keeps the servo from covering each goal step at its full speed between goals
+#: (at a low control rate it would otherwise move in bursts far above the limit); the margin keeps it from lagging
+#: a goal stream that moves at the limit.
+SPEED_CAP_MARGIN = 1.25
 
 
 class ServoBackend(Backend):
@@ -174,6 +185,7 @@ class ServoBackend(Backend):
         self._health_idx = 0
         self._next_health = 0.0
         self._health_unread_since: dict[int, float] = {}
+        self._stop_faults: set[str] = set()  # faults noted during the final glide (:meth:`_noted_while_stopping`)
         #: A servo whose health cannot be read for this long stops the motion (seconds).
         self.health_lost_after_s = 2.0
         self._volt_limits: dict[int, tuple[float, float]] = {}
@@ -184,6 +196,7 @@ class ServoBackend(Backend):
         n = len(servos)
         self._positions_known = False
         self._last_ticks = np.zeros(n, dtype=np.int64)  # last valid present position per servo
+        self._goal_ticks = np.zeros(n, dtype=np.int64)  # the last goal written, ticks
         self._last_ok_s = np.zeros(n)  # time.monotonic() of that reading
         self._misses = np.zeros(n, dtype=np.int64)  # consecutive ticks without a valid reading
         self._miss_attempts = np.zeros(n, dtype=np.int64)  # attempts since the last valid reading
@@ -531,7 +544,7 @@ class ServoBackend(Backend):
                     comm_of[sid] = comm
                     continue
                 hw = self._hardware_error(sid, err)
-                if hw:
+                if hw and not self._noted_while_stopping(sid, f"reports {hw}"):
                     raise BackendError(
                         f"{self._who(sid)} reports {hw} (register {reg.name}, attempt {attempts[sid]}/"
                         f"{self.retries + 1}); motion stopped, torque off"
@@ -573,19 +586,32 @@ class ServoBackend(Backend):
             self.missed_reads += 1
             unheard = now - self._last_ok_s[k]
             # Two misses at least: on a starved machine one slow tick alone can outlast lost_after_s.
-            if self._misses[k] >= max(2, self.lost_after_ticks) or (
+            lost = self._misses[k] >= max(2, self.lost_after_ticks) or (
                 self._misses[k] >= 2 and unheard >= self.lost_after_s
-            ):
+            )
+            if lost and not self._noted_while_stopping(sid, "lost (no valid reply)"):
                 raise BackendError(
                     f"{self._who(sid)}: lost, no valid reply to reading register {reg.name} for {self._misses[k]} "
                     f"ticks ({unheard:.2f} s, {self._miss_attempts[k]} attempts; last: {comm_of[sid]}); "
                     "motion stopped, torque off"
                 )
-            self.events.append(
-                f"missed {reg.name} of {self._who(sid)} ({comm_of[sid]}); holding its last value "
-                f"({self._misses[k]}/{self.lost_after_ticks} ticks)"
-            )
+            if not lost:
+                self.events.append(
+                    f"missed {reg.name} of {self._who(sid)} ({comm_of[sid]}); holding its last value "
+                    f"({self._misses[k]}/{self.lost_after_ticks} ticks)"
+                )
         return out
+
+    def _noted_while_stopping(self, sid: int, what: str) -> bool:
+        """While gliding to rest at the end (:attr:`stopping`), a fault is noted once in :attr:`events` and the
+        glide goes on with the servos that still answer (True); otherwise (False) the caller raises it."""
+        if not self.stopping:
+            return False
+        key = f"{self._who(sid)} {what}"
+        if key not in self._stop_faults:
+            self._stop_faults.add(key)
+            self.events.append(f"{key} during the glide to rest; the other servos go on to rest")
+        return True
 
     def _sync_write(self, reg: Enum, ticks: np.ndarray) -> None:
         try:
@@ -642,6 +668,7 @@ class ServoBackend(Backend):
             for sid in self.ids:
                 self._budget = self.tick_retry_budget
                 self._volt_limits[int(sid)] = self.voltage_range_v or self._voltage_limits_v(int(sid))
+            self._write_speed_caps()
             self.is_connected = True
             self.governor.reset()
             self._budget = self.tick_retry_budget
@@ -652,6 +679,21 @@ class ServoBackend(Backend):
         except BaseException:
             self._safe_close()
             raise
+
+    def speed_cap_units(self) -> np.ndarray:
+        """Per servo ``(J,)``: the value for its speed-cap register, the joint's velocity limit times
+        :data:`SPEED_CAP_MARGIN` at the servo horn (through the gear), in the model's units (at least 1: 0 means
+        no cap)."""
+        v = self.robot.v_max_rad_s * np.abs(self._gear) * SPEED_CAP_MARGIN  # (J,) rad/s at the horn
+        unit = np.array([m.speed_unit_rad_s for m in self.models])
+        top = np.array([m.speed_max_units for m in self.models])
+        return np.clip(np.ceil(v / unit), 1, top).astype(np.int64)
+
+    def _write_speed_caps(self) -> None:
+        """The servos' own speed limit (profile velocity / moving speed / goal speed; RAM, so at every connect)."""
+        for sid, units in zip(self.ids, self.speed_cap_units(), strict=True):
+            self._budget = self.tick_retry_budget
+            self.write_register(int(sid), self.REG["speed_cap"], int(units))
 
     def _check_limits_fit(self) -> None:
         t_lo = self.rad_to_ticks(self.robot.q_min_rad)
@@ -681,6 +723,26 @@ class ServoBackend(Backend):
         self._budget = self.tick_retry_budget  # a new control tick starts here
         ticks = np.clip(self.rad_to_ticks(q_rad), self._tick_lo, self._tick_hi)
         self._sync_write(self.REG["goal"], ticks)
+        self._goal_ticks = ticks
+
+    def confirm_goal(self) -> None:
+        """Read the goal registers back and re-send the last goal until every servo holds it (``retries`` extra
+        rounds). A sync write is never acknowledged: before torque goes on, a servo that missed it would drive at
+        full speed to whatever goal it held before (another session's pose)."""
+        if self.last_goal_rad is None:
+            raise BackendError("confirm_goal: no goal sent yet; write_goal() first")
+        for attempt in range(1, self.retries + 2):
+            self._budget = self.tick_retry_budget
+            held = self._sync_read(self.REG["goal"])
+            wrong = np.nonzero(held != self._goal_ticks)[0]
+            if not wrong.size:
+                return
+            k = int(wrong[0])
+            what = f"{self._who(int(self.ids[k]))} holds goal tick {held[k]}, not {self._goal_ticks[k]}"
+            if attempt <= self.retries:
+                self.events.append(f"{what}; goal sent again")
+                self._sync_write(self.REG["goal"], self._goal_ticks)
+        raise BackendError(f"{what} after {self.retries + 1} writes; torque not enabled")
 
     def set_torque(self, on: bool) -> None:
         """Torque on/off, one confirmed write per servo (a lost sync write must not leave torque on)."""
@@ -710,9 +772,15 @@ class ServoBackend(Backend):
     def shutdown(self) -> None:
         """Glide to rest (if torque is on and the port answers; :func:`~robogest.backends.control.go_to_rest`),
         then torque off, then close. Idempotent."""
+        from robogest.backends.control import deferred_signals
+
         if self._shut_down:
             return
         self._shut_down = True
+        with deferred_signals():  # a signal now is raised after torque off on every servo, not between two
+            self._shut_down_now()
+
+    def _shut_down_now(self) -> None:
         problems: list[str] = []
         try:
             if self.is_connected and self.torque_enabled and not self.port_lost:
@@ -742,8 +810,8 @@ class ServoBackend(Backend):
         only a servo whose health stays unreadable for ``health_lost_after_s`` stops the motion. Hardware
         error bits and readings past the thresholds always stop it."""
         now = time.monotonic()
-        if now < self._next_health or not len(self.ids):
-            return
+        if self.stopping or now < self._next_health or not len(self.ids):
+            return  # on the way to rest at the end: a reading past a limit would only cut that short
         self._next_health = now + self.health_period_s / len(self.ids)
         sid = int(self.ids[self._health_idx % len(self.ids)])
         self._health_idx += 1

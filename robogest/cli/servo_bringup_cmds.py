@@ -75,10 +75,11 @@ def jog(args: argparse.Namespace) -> int:
         loop.set_idle(lambda t: goal)
         deadline = time.monotonic() + 120.0
         while np.max(np.abs(loop.goal_rad - goal)) > 1e-4 and time.monotonic() < deadline:
-            time.sleep(0.02)
-        time.sleep(args.hold)
+            loop.run_for(0.02)  # raises the loop's error: a fault stops the jog (at rest, torque off)
+        loop.run_for(args.hold)
         reached = loop.goal_rad[k]  # the loop thread owns the port: no read from here
-        print(f"{args.joint}: at {reached:+.3f} rad (goal {args.angle:+.3f} rad); back to rest, torque off")
+    # leaving the block raised if the loop failed or rest was not reached
+    print(f"{args.joint}: at {reached:+.3f} rad (goal {args.angle:+.3f} rad); back to rest, torque off")
     return 0
 
 

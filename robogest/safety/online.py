@@ -189,6 +189,24 @@ class OnlineLimiter:
         self._proposed: MotionState | None = None
         self._target = self.state.q_rad.copy()
 
+    def take_over(self, q_rad: np.ndarray, v_rad_s: np.ndarray, a_rad_s2: np.ndarray) -> np.ndarray:
+        """Start over from a goal stream that is moving: pose ``q_rad``, velocity ``v_rad_s`` and acceleration
+        ``a_rad_s2``, each ``(J,)`` (rad, rad/s, rad/s²), where the limiter can carry that motion on within every
+        limit: acceleration within its limit, velocity that stays within its limit as the acceleration is brought
+        to zero at the jerk limit, and a hardest brake that stays within the position limits. A joint where it
+        cannot (an erratic stream, say) starts still, as :meth:`reset` does. Returns ``(J,)`` bool: taken over."""
+        self.reset(q_rad)
+        v = np.nan_to_num(np.asarray(v_rad_s, dtype=float), nan=np.inf)
+        a = np.nan_to_num(np.asarray(a_rad_s2, dtype=float), nan=np.inf)
+        ok = (np.abs(a) <= self.a_max_rad_s2) & (
+            np.abs(v + a * np.abs(a) / (2 * self.j_max_rad_s3)) <= self.v_max_rad_s
+        )
+        ok &= np.abs(v) <= self.v_max_rad_s
+        cand = MotionState(self.state.q_rad, np.where(ok, v, 0.0), np.where(ok, a, 0.0))
+        ok &= self._stops_inside(cand)
+        self.state = MotionState(self.state.q_rad, np.where(ok, v, 0.0), np.where(ok, a, 0.0))
+        return ok
+
     @property
     def q_rad(self) -> np.ndarray:
         """Last committed goal ``(J,)``, radians."""

@@ -456,3 +456,96 @@ def test_a_move_on_ruckigs_knife_edge_is_planned_not_raised():
     assert 0.08 < reach[0] < 0.09  # the move that ruckig refused, 0.0865 rad, is inside this bisection
     assert lim.time_to_reach_s([rest + reach[0]]) <= 0.2 + 1e-6
     assert lim.fallbacks == 0
+
+
+def test_a_glide_to_rest_slower_than_the_default_timeout_still_ends_at_rest():
+    """0.9 rad at 0.03 rad/s takes about 30 s, beyond REST_TIMEOUT_S: the glide's timeout follows the limits, since
+    giving up turns torque off with the joint away from rest."""
+    robot = make_robot([-1.0], [1.0], [0.03], [0.5], [0.0])
+    b = Recorder(robot, start_q_rad=np.array([0.9]))
+    loop = ControlLoop(b, 50.0).start()
+    assert loop.close() is None
+    np.testing.assert_allclose(b.sent[-1], robot.rest_q_rad, atol=1e-9)
+    assert not b.torque
+    check_limits(np.array(b.sent), robot, 0.02)
+
+
+def test_go_to_rest_takes_over_a_moving_goal_stream_within_the_acceleration_and_jerk_limits():
+    """A backend driven directly (no loop) and then shut down mid-motion: the glide brakes from the goals' velocity
+    instead of stopping them dead in one tick."""
+    robot = small_robot()
+    b = Recorder(robot)
+    b.set_control_rate(100.0)
+    b.connect()
+    b.set_torque(True)
+    lim = OnlineLimiter.for_robot(robot, 0.01, robot.rest_q_rad)
+    b.write_goal(robot.rest_q_rad)  # still at rest (what check_limits takes the goals before the first to be)
+    for _ in range(40):  # towards a far pose: at full speed by now
+        b.write_goal(lim.step(np.array([0.95, -1.4])))
+    assert np.abs(b.last_goal_v_rad_s).max() > 1.0
+    b.shutdown()
+    np.testing.assert_allclose(b.sent[-1], robot.rest_q_rad, atol=1e-9)
+    check_limits(np.array(b.sent), robot, 0.01)
+
+
+def test_a_with_block_whose_start_fails_after_torque_on_turns_torque_off():
+    class TorqueAckLost(Recorder):
+        def set_torque(self, on: bool) -> None:
+            super().set_torque(on)
+            if on:
+                raise BackendError("servo id 3 (joint j1): no valid reply to writing register TORQUE_ENABLE")
+
+    b = TorqueAckLost(small_robot())
+    with pytest.raises(BackendError, match="TORQUE_ENABLE"), ControlLoop(b, 100.0):
+        pass
+    assert not b.torque and not b.is_connected
+
+
+def test_leaving_a_with_block_raises_a_loop_failure_the_block_did_not_see():
+    robot = small_robot()
+
+    class FailsOnce(RealtimeRecorder):
+        def _send_goal(self, q_rad):
+            if len(self.sent) == 30 and not hasattr(self, "failed"):
+                self.failed = True
+                raise BackendError("servo id 3 (joint j1): lost")
+            super()._send_goal(q_rad)
+
+    b = FailsOnce(robot)
+    with pytest.raises(BackendError, match="servo id 3"), ControlLoop(b, 100.0) as loop:
+        loop.play(sine(robot))
+        time.sleep(0.3)  # not the loop's wait: nothing in the block looks at the loop again
+    assert loop.rest_problem is None  # the glide went to rest: the failure itself is what is raised
+    assert not b.torque and not b.is_connected
+
+
+def test_a_signal_during_the_closing_glide_is_raised_once_at_rest_with_torque_off():
+    """Ctrl-C while the loop glides to rest at close: the glide goes on within every limit and the signal is raised
+    once the robot is at rest with torque off (raised mid-glide, the backend's own glide started over from a
+    standstill: 8.6 times the acceleration limit)."""
+    import os
+    import signal
+
+    from robogest.backends.control import signals_end_at_rest
+
+    robot = small_robot()
+
+    class SignalMidGlide(Recorder):
+        closing_at: int | None = None
+
+        def advance(self, dt_s: float) -> None:  # between two ticks, outside the tick's own signal section
+            super().advance(dt_s)
+            if self.closing_at is not None and len(self.sent) == self.closing_at + 10:
+                os.kill(os.getpid(), signal.SIGINT)
+
+    b = SignalMidGlide(robot)
+    with signals_end_at_rest():
+        loop = ControlLoop(b, 100.0, threaded=False).start()
+        loop.play(sine(robot))
+        loop.run_for(0.7)  # mid-gesture, moving
+        b.closing_at = len(b.sent)
+        with pytest.raises(KeyboardInterrupt):
+            loop.close()
+    assert len(b.sent) > b.closing_at + 10 and not b.torque
+    np.testing.assert_allclose(b.sent[-1], robot.rest_q_rad, atol=1e-9)
+    check_limits(np.array(b.sent), robot, 0.01)
