@@ -193,3 +193,28 @@ def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str 
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as e:
         raise InputError(f"{label}: not a readable .npz ({type(e).__name__}: {e})") from None
     return out
+
+
+def load_yaml(text: str) -> object:
+    """YAML text -> Python objects (``yaml.safe_load``), refusing a key given twice in one mapping: PyYAML keeps
+    the last one silently, so a limit written twice (or a servo's ``direction`` in an entry repeated below it)
+    would take effect unseen. Raises ``yaml.YAMLError`` (a ``ConstructorError`` naming the key and line)."""
+    import yaml
+
+    class _NoDuplicates(yaml.SafeLoader):
+        pass
+
+    def mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
+        seen: dict = {}
+        for key_node, _ in node.value:
+            key = loader.construct_object(key_node, deep=True)
+            line = key_node.start_mark.line + 1
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    problem=f"key {key!r} given twice in one mapping (lines {seen[key]} and {line}); keep one"
+                )
+            seen[key] = line
+        return loader.construct_mapping(node, deep)
+
+    _NoDuplicates.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
+    return yaml.load(text, Loader=_NoDuplicates)

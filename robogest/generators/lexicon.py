@@ -41,6 +41,7 @@ import numpy as np
 import yaml
 
 from robogest.errors import ConfigError
+from robogest.fileio import load_yaml
 from robogest.generators.poses import DOF_NAMES, pose
 
 #: Built-in units.
@@ -177,7 +178,7 @@ _HEAD_IDX = [DOF_NAMES.index(n) for n in ("head_pitch", "head_yaw", "head_roll")
 def load_file(path: Path) -> dict[str, GestureUnit]:
     """Units of one YAML file."""
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = load_yaml(path.read_text(encoding="utf-8"))
     except OSError as e:
         raise ConfigError(f"{path}: cannot read ({e})") from None
     except yaml.YAMLError as e:

@@ -12,9 +12,10 @@ from typing import Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
 from robogest.errors import ConfigError
+from robogest.fileio import load_yaml
 
 #: Human joints (canonical skeleton names) a retargeting vector may start or end at.
 HUMAN_POINTS = (
@@ -27,10 +28,22 @@ HUMAN_POINTS = (
 JERK_RISE_S = 0.05
 
 
+#: Field types whose YAML value must be a plain number.
+_NUMBER_TYPES = (float, int, float | None, int | None)
+
+
 class _Strict(BaseModel):
     # allow_inf_nan=False: every number in a robot file (limits, rest, speeds, offsets, gear ratios, retarget
     # weights, frame angles) must be finite; NaN or .inf is refused naming the key.
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _numbers_are_numbers(cls, v: object, info: ValidationInfo) -> object:
+        # Lax pydantic reads `true` as 1.0 and "3.0" as 3.0: a quoted or boolean limit is a mistake, not a number.
+        if cls.model_fields[info.field_name].annotation in _NUMBER_TYPES and isinstance(v, (bool, str)):
+            raise ValueError(f"{v!r} is not a number; write the value unquoted (e.g. 3.0)")
+        return v
 
 
 class JointConfig(_Strict):
@@ -195,7 +208,7 @@ def load_robot_config(path: str | Path) -> RobotConfig:
     """Read and validate one robot YAML; every problem becomes a :class:`ConfigError` naming file and key."""
     path = Path(path)
     try:
-        raw = yaml.safe_load(path.read_text())
+        raw = load_yaml(path.read_text())
     except OSError as e:
         raise ConfigError(f"{path}: cannot read robot file ({e.strerror})") from None
     except yaml.YAMLError as e:

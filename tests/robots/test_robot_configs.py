@@ -156,13 +156,42 @@ def test_valid_copy_loads(tmp_path):
         (lambda r: r["retarget"][1].update(weight=float("inf")), r"key retarget\[1\]\.weight: inf is not a finite"),
         (lambda r: r.update(retarget_frame_rpy_rad=[0.0, float("nan"), 0.0]),
          r"key retarget_frame_rpy_rad\[1\]: nan is not a finite number"),
+        (lambda r: r["joints"][0].update(max_velocity_rad_s=True),
+         r"key joints\[0\]\.max_velocity_rad_s: True is not a number; write the value unquoted"),
+        (lambda r: r["joints"][2].update(upper_rad="1.5"), r"key joints\[2\]\.upper_rad: '1\.5' is not a number"),
+        (lambda r: r["bus"]["servos"]["l_elbow"].update(id=True), r"key bus\.servos\.l_elbow\.id: True is not a"),
     ],
     ids=["unknown-key", "unknown-joint-key", "lower>upper", "missing-model", "duplicate-id", "bus-missing-joint",
          "bad-human-point", "nan-zero-offset", "inf-gear-ratio", "zero-gear-ratio", "nan-limit", "inf-velocity",
-         "inf-rest", "inf-weight", "nan-frame-rpy"],
+         "inf-rest", "inf-weight", "nan-frame-rpy", "bool-velocity", "quoted-limit", "bool-id"],
 )  # fmt: skip
 def test_broken_yaml_names_file_and_key(tmp_path, mutate, pattern):
     path = _write_variant(tmp_path, mutate)
+    with pytest.raises(ConfigError, match=pattern) as exc:
+        load_robot_config(path)
+    assert str(path) in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "pattern"),
+    [
+        ("upper_rad: 1.2,", "upper_rad: 1.2, upper_rad: 0.5,", r"key 'upper_rad' given twice in one mapping"),
+        (
+            "    r_elbow:          {id: 11, model: XL430-W250, direction: -1}",
+            "    r_elbow:          {id: 11, model: XL430-W250, direction: -1}\n    r_elbow: {id: 11, model: XL430}",
+            r"key 'r_elbow' given twice .*keep one",
+        ),
+    ],
+    ids=["limit", "servo-entry"],
+)
+def test_a_key_given_twice_is_refused_not_overwritten(tmp_path, old, new, pattern):
+    """PyYAML keeps the last of two equal keys: a second limit, or a servo entry repeated without its
+    ``direction: -1``, would take effect unseen."""
+    src = list_robots()["humanoid_xl430"]
+    text = src.read_text().replace("../sim/", str(src.parent.parent / "sim") + "/")
+    assert old in text
+    path = tmp_path / "twice.yaml"
+    path.write_text(text.replace(old, new, 1))
     with pytest.raises(ConfigError, match=pattern) as exc:
         load_robot_config(path)
     assert str(path) in str(exc.value)
