@@ -32,7 +32,6 @@ import ipaddress
 import json
 import signal
 import sys
-import threading
 from collections.abc import Sequence
 from http import HTTPStatus
 from typing import Any
@@ -82,7 +81,10 @@ class Server:
         self.host, self.port = host, port
         self.token = token
         self.origins: list[str | None] = [None, *allow_origins]
-        self._lock = threading.Lock()  # one robot: utterances from several clients go one at a time
+        #: One robot: utterances from every client are prepared one at a time, in the order they came (a fair
+        #: asyncio lock, so waiting ones hold no worker thread and an interrupt never queues behind them).
+        self._say_lock = asyncio.Lock()
+        self._interrupts = 0  #: interrupts so far: a say that came before one is dropped, not started after it
 
     # --- handshake ------------------------------------------------------------------------------------
     def _check_token(self, connection: Any, request: Any) -> Any:
@@ -140,9 +142,13 @@ class Server:
     async def _handle(self, ws: Any) -> None:
         conn = _Connection(self, ws)
         await conn.send({"type": "hello", "protocol": PROTOCOL_VERSION, **self.robot.status()})
+        from websockets.exceptions import ConnectionClosed
+
         try:
             async for msg in ws:
                 await conn.dispatch(msg)
+        except ConnectionClosed:  # the client went away without a closing handshake: nothing to report
+            pass
         finally:
             conn.finish()
 
@@ -200,6 +206,7 @@ class _Connection:
         await self.send({"type": "status", **self.robot.status()})
 
     async def _on_interrupt(self, obj: dict) -> None:
+        self.server._interrupts += 1  # says still waiting their turn are dropped
         res = await asyncio.to_thread(self.robot.interrupt)
         self.stream = None
         await self.send({"type": "interrupted", **res})
@@ -210,16 +217,18 @@ class _Connection:
             if v is not None and not isinstance(v, str):
                 raise InputError(f'say: "{key}" must be a string')
 
-        def start() -> Any:
-            with self.server._lock:
-                return self.robot.say(text, audio=audio, transcript=transcript, wait=False)
+        asked = self.server._interrupts
 
         async def run() -> None:
-            try:
-                h = await asyncio.to_thread(start)
-            except RobogestError as e:
-                await self.error(f"say: {e}")
-                return
+            async with self.server._say_lock:
+                if self.server._interrupts != asked:
+                    await self.error("say: dropped, an interrupt came before it started")
+                    return
+                try:
+                    h = await asyncio.to_thread(self.robot.say, text, audio=audio, transcript=transcript, wait=False)
+                except RobogestError as e:
+                    await self.error(f"say: {e}")
+                    return
             await self.send({"type": "accepted", "utterance": h.id, "id": obj.get("id")})
             await self._pump(h)
 

@@ -26,6 +26,7 @@ import queue
 import sys
 import threading
 import time
+import weakref
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -272,9 +273,13 @@ class Robot:
         self._exit = contextlib.ExitStack()
         self._current: UtteranceHandle | None = None
         self._audio: AudioOut | None = None
-        self._stream: StreamUtterance | None = None
         self._opened = False
         self._say_lock = threading.Lock()
+        #: One plan at a time: the planners of streams and the warm-up share one IK solver and its MuJoCo data,
+        #: which two threads at once corrupt (a segfault: no glide to rest, torque left on).
+        self._plan_lock = threading.Lock()
+        self._interrupts = 0  #: interrupt() calls so far: an utterance asked for before one is not started after
+        self._streams: weakref.WeakSet[StreamUtterance] = weakref.WeakSet()  # every stream not yet finished
 
     # --- life cycle --------------------------------------------------------------------------------
     def open(self) -> Robot:
@@ -321,11 +326,17 @@ class Robot:
             self.loop.start()
         except BaseException:
             self.loop.close()
+            self._opened = False  # may be opened again
             if self._blas is not None:
                 self._blas.restore_original_limits()
+                self._blas = None
             raise
-        self._warm = threading.Thread(target=self._background_start, daemon=True, name="robogest-warm-up")
-        self._warm.start()
+        try:
+            self._warm = threading.Thread(target=self._background_start, daemon=True, name="robogest-warm-up")
+            self._warm.start()
+        except BaseException:  # e.g. a signal right here: the loop holds the robot with torque on
+            self.close()
+            raise
         return self
 
     def _background_start(self) -> None:
@@ -359,9 +370,11 @@ class Robot:
             pl = StreamingPlanner(self.config, self._rhythm, self._ik, st)
             for i in range(0, len(tone), 1600):  # a word too: plans place its stressed syllable with eSpeak NG
                 if st.feed(tone[i : i + 1600], words=[("hello", 0.1, 0.6)] if i == 0 else None):
-                    pl.plan()
+                    with self._plan_lock:
+                        pl.plan()
             st.close()
-            pl.plan()
+            with self._plan_lock:
+                pl.plan()
 
     def close(self) -> str | None:
         """Stop any utterance, glide to rest, torque off, disconnect. Idempotent; returns why rest was not
@@ -369,8 +382,10 @@ class Robot:
         if not self._opened or self.loop is None:
             return None
         self._stop_audio()
-        if self._stream is not None:
-            self._stream._interrupt()
+        with self._say_lock:
+            self._interrupts += 1
+        for st in list(self._streams):
+            st._interrupt()
         try:
             return self.loop.close()
         finally:
@@ -440,6 +455,7 @@ class Robot:
         self._check_open()
         h = UtteranceHandle("say")
         h._add("requested")
+        asked = self._interrupts
         self._idle_stop()
         try:
             speech = load_speech_input(
@@ -454,7 +470,7 @@ class Robot:
             self._idle_resume()
             raise
         h.trajectory = traj
-        self._start(h, traj, lambda out: out.write(speech.audio), speech.sr)
+        self._start(h, traj, lambda out: out.write(speech.audio), speech.sr, asked)
         if wait:
             h.wait()
         return h
@@ -464,22 +480,31 @@ class Robot:
         self._check_open()
         return StreamUtterance(self, int(sample_rate), self.lookahead_s if lookahead_s is None else lookahead_s)
 
-    def _start(self, h: UtteranceHandle, traj: Any, fill: Callable[[AudioOut], None] | None, sr: int) -> None:
-        """Hand ``traj`` to the loop; audio (``fill`` writes it) starts when the trajectory does."""
-        self._stop_audio()
+    def _start(
+        self, h: UtteranceHandle, traj: Any, fill: Callable[[AudioOut], None] | None, sr: int, asked: int
+    ) -> None:
+        """Hand ``traj`` to the loop; audio (``fill`` writes it) starts when the trajectory does. Not if
+        :meth:`interrupt` was called since the utterance was asked for (``asked``: the count then)."""
         out = AudioOut(self._sd, sr)
         if fill is not None:
             fill(out)
-        play = self.loop.play(traj, approach_within_rad=self.approach_within_rad)
 
         def on_start() -> None:  # in the loop's tick: keep short
             played = out.start()
             h._add("audio_start", played=played)
 
-        play.on_start = on_start
-        with self._say_lock:
-            self._current, self._audio = h, out
-        h._attach(play)
+        with self._say_lock:  # an interrupt now waits until this play is in the loop, where it stops it
+            if self._interrupts != asked:
+                h._abandon("interrupt")
+            else:
+                if self._audio is not None:
+                    self._audio.stop()
+                play = self.loop.play(traj, approach_within_rad=self.approach_within_rad)
+                play.on_start = on_start
+                self._current, self._audio = h, out
+                h._attach(play)
+        if h._play is None:  # abandoned: the idle motion comes back
+            self._idle_resume()
 
     def _stop_audio(self) -> None:
         with self._say_lock:
@@ -495,13 +520,20 @@ class Robot:
         """
         self._check_open()
         t0 = time.monotonic()
-        self._stop_audio()
-        if self._stream is not None:
-            self._stream._interrupt()
+        with self._say_lock:  # utterances asked for before now are not started (Robot._start)
+            self._interrupts += 1
+            if self._audio is not None:
+                self._audio.stop()
+                self._audio = None
+        for st in list(self._streams):
+            st._interrupt()
         rest = self.loop.interrupt()
 
         def resume() -> None:
-            rest.wait()
+            try:
+                rest.wait()
+            except RuntimeError:  # the session closed meanwhile: its own glide took the robot to rest
+                return
             if self.idle is not None and not self.loop._closed and self.loop._rest is rest:
                 self._idle_resume()
                 self.loop.set_idle(self._idle_target)
@@ -567,10 +599,7 @@ class StreamUtterance:
         self._state = threading.Lock()  # starting the motion vs. an interrupt
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._thread = threading.Thread(target=self._run, daemon=True, name=f"robogest-stream-{self.handle.id}")
-        robot._stream = self
-        robot._stop_audio()
-        with robot._say_lock:
-            robot._current = self.handle
+        robot._streams.add(self)  # the utterance playing keeps its audio until this one has motion (_start)
         self._thread.start()
 
     def __enter__(self) -> StreamUtterance:
@@ -586,7 +615,7 @@ class StreamUtterance:
     def _interrupt(self) -> None:
         with self._state:
             self._dead = True
-            if not self._playing:
+            if not self._playing and not self.handle.done:
                 self.handle._abandon("interrupt")
         self._queue.put(_STOP)
 
@@ -636,6 +665,12 @@ class StreamUtterance:
     # --- the stream's thread -----------------------------------------------------------------------
     def _run(self) -> None:
         try:
+            self._serve()
+        finally:
+            self.robot._streams.discard(self)  # planned to the end (or stopped): interrupt() stops its motion
+
+    def _serve(self) -> None:
+        try:
             while True:
                 batch = [self._queue.get()]
                 while not self._queue.empty():  # take everything that arrived while the last plan ran
@@ -651,7 +686,7 @@ class StreamUtterance:
                 if closing:
                     self._finish()
                     return
-                if updated and self.planner.plan():
+                if updated and self._plan():
                     self._start()
         except BaseException as e:  # a bug or a bad input found late: stop the utterance, keep the session
             self._error = e
@@ -666,9 +701,13 @@ class StreamUtterance:
             else:
                 self.robot._idle_resume()
 
+    def _plan(self) -> int:
+        with self.robot._plan_lock:  # the planners share the session's IK solver
+            return self.planner.plan()
+
     def _finish(self) -> None:
         self.speech.close()
-        self.planner.plan()
+        self._plan()
         self.planner.feed.close()
         if self.planner.feed.n_frames:
             self._start()
@@ -693,7 +732,11 @@ class StreamUtterance:
             start_at = None
             if r.loop.backend.realtime and self._t_first is not None:
                 start_at = max(r.loop.now_s, r.loop.loop_s_at(self._t_first + self.speech.lookahead_s))
-            play = r.loop.play(self.planner.feed, start_at=start_at, approach_within_rad=r.approach_within_rad)
+            try:
+                play = r.loop.play(self.planner.feed, start_at=start_at, approach_within_rad=r.approach_within_rad)
+            except BaseException:  # the loop failed or closed: _run abandons the handle (not playing after all)
+                self._playing = False
+                raise
 
             def on_start() -> None:  # in the loop's tick: keep short
                 played = out.start()
@@ -706,8 +749,10 @@ class StreamUtterance:
                             h._add("audio_chunk", t + off / r.time_scale, offset_s=off, n_samples=n)
 
             play.on_start = on_start
-            with r._say_lock:
-                r._audio = out
+            with r._say_lock:  # this utterance replaces the one playing: its audio stops now, not at feed time
+                if r._audio is not None and r._audio is not out:
+                    r._audio.stop()
+                r._audio, r._current = out, h
             h._attach(play)
 
     def close(self) -> UtteranceHandle:

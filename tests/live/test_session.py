@@ -193,3 +193,101 @@ def test_session_refuses_bad_input_with_one_clear_line():
         assert h.done
     with pytest.raises(InputError, match="not open"):
         robot.say("Hi.")
+
+
+def test_an_interrupt_while_a_say_is_still_being_prepared_keeps_it_from_starting(monkeypatch):
+    """A voice agent's barge-in can come before the reply's motion exists: that reply must never start."""
+    import threading
+
+    with Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST, warm_up=False) as robot:
+        generate = robot._generator.generate
+        preparing = threading.Event()
+
+        def slow_generate(*a, **k):
+            preparing.set()
+            time.sleep(0.3)
+            return generate(*a, **k)
+
+        monkeypatch.setattr(robot._generator, "generate", slow_generate)
+        box: dict = {}
+        t = threading.Thread(target=lambda: box.update(h=robot.say("Let me tell you about it.", wait=False)))
+        t.start()
+        assert preparing.wait(30)
+        robot.interrupt()
+        t.join(30)
+        h = box["h"]
+        assert h.done and h.interrupted and h.event("started") is None and h.event("first_goal") is None
+        time.sleep(0.2)
+        np.testing.assert_allclose(robot.loop.goal_rad, robot.loop.rest_q_rad, atol=1e-9)
+        assert robot.say("Still here.").event("done") is not None  # later utterances play
+
+
+def test_plans_of_streams_and_the_warm_up_never_share_the_ik_solver_at_once():
+    """They share one IK solver and its MuJoCo data; two threads in it at once crashed the process (segfault)."""
+    import threading
+
+    with Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST) as robot:
+        retarget, inside, worst = robot._ik.retarget, [0], [0]
+        count = threading.Lock()
+
+        def counted(*a, **k):
+            with count:
+                inside[0] += 1
+                worst[0] = max(worst[0], inside[0])
+            try:
+                time.sleep(0.002)  # widen the window a race needs
+                return retarget(*a, **k)
+            finally:
+                with count:
+                    inside[0] -= 1
+
+        robot._ik.retarget = counted
+        sp = synthesize("One, two, three, four.")
+        streams = [robot.stream(sp.sr), robot.stream(sp.sr)]  # the warm-up runs too
+        for i in range(0, len(sp.audio), 1600):
+            for s in streams:
+                s.feed(sp.audio[i : i + 1600])
+        for s in streams:
+            s.close()
+        for s in streams:
+            s.wait(60)
+    assert worst[0] == 1
+
+
+def test_a_stream_whose_motion_cannot_start_finishes_its_handle_instead_of_hanging():
+    from robogest.errors import SafetyError
+
+    with Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST, warm_up=False) as robot:
+        sp = synthesize("Hello.")
+
+        def broken(*a, **k):
+            raise SafetyError("the loop is gone (simulated)")
+
+        robot.loop.play = broken
+        with pytest.raises(SafetyError, match="simulated"), robot.stream(sp.sr) as s:
+            for i in range(0, len(sp.audio), 1600):
+                s.feed(sp.audio[i : i + 1600])
+                time.sleep(0.01)
+            assert s.handle.wait(20)  # done (abandoned), not blocked
+            s.wait(20)
+        assert s.handle.interrupted
+
+
+def test_a_signal_as_open_finishes_still_ends_at_rest_with_torque_off(monkeypatch):
+    import threading
+
+    from robogest.backends.control import Interrupted
+
+    start = threading.Thread.start
+
+    def signal_after_warm_up_starts(self):
+        start(self)
+        if self.name == "robogest-warm-up":
+            raise Interrupted(signal.SIGTERM)  # what the signal handler raises in the main thread
+
+    monkeypatch.setattr(threading.Thread, "start", signal_after_warm_up_starts)
+    robot = Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST, warm_up=False)
+    with pytest.raises(KeyboardInterrupt), robot:
+        pass
+    assert robot.loop._closed and not robot.loop._thread.is_alive()
+    assert robot.loop.backend.inner._torque is False
