@@ -24,11 +24,13 @@ from robogest.backends.dynamixel_tables import (
     XReg,
 )
 from robogest.backends.servo_common import ServoBackend, ServoModel, describe_bits, sign_magnitude_decode
-from robogest.errors import ConfigError
+from robogest.errors import BackendError, ConfigError
 from robogest.robot.config import RobotConfig
 
 #: X-series models whose address 126 is Present Current (mA units), not Present Load (0.1 %).
 CURRENT_SENSING = frozenset({"XM430-W350", "XL330-M288"})
+#: X-series Operating Mode values in which Goal Position is an angle: position, extended position, current-based.
+POSITION_MODES = frozenset({3, 4, 5})
 #: Protocol 2.0 status packet: id at 4, error byte at 8, parameters from 9, two CRC bytes (dynamixel_sdk PKT_*).
 P2_STATUS_LAYOUT = (4, 8, 9, 2)
 
@@ -105,6 +107,23 @@ class DynamixelBackend(ServoBackend):
         if err & 0x7F:
             parts.append(X_STATUS_ERRORS.get(err & 0x7F, f"status error {err & 0x7F}"))
         return "; ".join(parts)
+
+    def _check_position_mode(self, sid: int) -> None:
+        if self.protocol != 2.0:
+            return  # AX/MX: wheel mode is both angle limits at 0, checked with the limits
+        mode = self.read_register(sid, XReg.OPERATING_MODE)
+        if mode not in POSITION_MODES:
+            raise BackendError(
+                f"{self._who(sid)}: Operating Mode (register 11) is {mode}, not a position mode (3 position, 4 "
+                "extended position, 5 current-based position); set it to 3 with torque off (Dynamixel Wizard)"
+            )
+        drive = self.read_register(sid, XReg.DRIVE_MODE)
+        if drive & 0x05:
+            why = "the reverse bit (0) reverses the servo" if drive & 0x01 else "bit 2 makes Profile Velocity a time"
+            raise BackendError(
+                f"{self._who(sid)}: Drive Mode (register 10) is {drive}: {why}; clear bits 0 and 2 (direction: -1 in "
+                "the robot YAML mirrors a joint instead)"
+            )
 
     def _voltage_limits_v(self, sid: int) -> tuple[float, float]:
         p2 = self.protocol == 2.0

@@ -15,7 +15,7 @@ import scservo_sdk as scs
 from robogest.backends.base import register_backend
 from robogest.backends.feetech_tables import FT_ERRORS, MODELS, SCS_SIGN_BITS, STS_SIGN_BITS, SCSReg, STSReg
 from robogest.backends.servo_common import ServoBackend, ServoModel, describe_bits, sign_magnitude_decode
-from robogest.errors import ConfigError
+from robogest.errors import BackendError, ConfigError
 from robogest.robot.config import RobotConfig
 
 
@@ -78,6 +78,16 @@ class FeetechBackend(ServoBackend):
 
     def _hardware_error(self, sid: int, err: int) -> str | None:
         return describe_bits(err, FT_ERRORS) if err else None
+
+    def _check_position_mode(self, sid: int) -> None:
+        if self._end != 0:
+            return  # SCS: wheel mode is both angle limits at 0, checked with the limits
+        mode = self.read_register(sid, STSReg.OPERATING_MODE)
+        if mode != 0:
+            raise BackendError(
+                f"{self._who(sid)}: Operating Mode (register 33) is {mode}, not 0 (position): in speed mode it "
+                "would turn continuously; set it to 0 with torque off"
+            )
 
     def _voltage_limits_v(self, sid: int) -> tuple[float, float]:
         lo = self.read_register(sid, self._R.MIN_VOLTAGE_LIMIT) / 10.0

@@ -448,6 +448,10 @@ class ServoBackend(Backend):
     def _voltage_limits_v(self, sid: int) -> tuple[float, float]:
         raise NotImplementedError
 
+    def _check_position_mode(self, sid: int) -> None:
+        """Raise unless servo ``sid`` is in a position-control mode that reads goals as robogest writes them (a
+        servo in speed or PWM mode would take the speed cap as a speed to turn at)."""
+
     # --- mapping ---------------------------------------------------------------------------------
     def rad_to_ticks(self, q_rad: np.ndarray) -> np.ndarray:
         """``(J,)`` joint radians -> ``(J,)`` integer ticks (YAML mapping, then the model's resolution)."""
@@ -663,6 +667,16 @@ class ServoBackend(Backend):
             lo = self._sync_read(self.REG["min"])
             hi = self._sync_read(self.REG["max"])
             self._tick_lo, self._tick_hi = np.minimum(lo, hi), np.maximum(lo, hi)
+            wheel = np.nonzero((lo == 0) & (hi == 0))[0]
+            if wheel.size:  # both angle limits 0 is wheel (continuous turn) mode on AX/MX and SCS servos
+                raise BackendError(
+                    f"{self._who(int(self.ids[wheel[0]]))}: both position-limit registers are 0, which is wheel "
+                    "(continuous rotation) mode: goals would set its speed, not its angle; set its limits "
+                    "(`robogest servo doctor --fix`) before using it"
+                )
+            for sid in self.ids:
+                self._budget = self.tick_retry_budget
+                self._check_position_mode(int(sid))
             if self.check_limits:
                 self._check_limits_fit()
             for sid in self.ids:

@@ -159,3 +159,28 @@ def test_at_a_low_control_rate_the_servo_keeps_near_the_velocity_limit_between_g
     q = (rec["present_ticks"] - 2048) / backend._tpr[0]  # (N, J) servo radians
     v = np.abs(np.diff(q, axis=0)) / np.diff(rec["t_s"])[:, None]
     assert v.max() < 1.6 * robot.v_max_rad_s.max()
+
+
+@pytest.mark.parametrize(
+    ("family", "protocol", "register", "value", "match"),
+    [
+        ("dynamixel", 2.0, "Operating_Mode", 1, r"servo id 2 \(joint j1\): Operating Mode \(register 11\) is 1"),
+        ("dynamixel", 2.0, "Drive_Mode", 1, r"servo id 2 \(joint j1\): Drive Mode .*reverse bit"),
+        ("dynamixel", 2.0, "Drive_Mode", 4, r"servo id 2 \(joint j1\): Drive Mode .*Profile Velocity a time"),
+        ("feetech", 0.0, "Operating_Mode", 1, r"servo id 2 \(joint j1\): Operating Mode \(register 33\) is 1"),
+        ("dynamixel", 1.0, "wheel", 0, r"servo id 2 \(joint j1\): both position-limit registers are 0.*wheel"),
+    ],
+)
+def test_connect_refuses_a_servo_not_in_position_mode(tmp_path, family, protocol, register, value, match):
+    """Goals are angles only in a position mode; in speed (wheel) mode a servo would take its speed cap as the
+    speed to turn at, and Dynamixel's reverse bit would mirror the joint on top of the YAML's direction."""
+    robot = make_robot(tmp_path, family=family, protocol=protocol)
+    with VirtualBus(robot) as bus:
+        servo = bus.servo(2)
+        names = ["CW_Angle_Limit", "CCW_Angle_Limit"] if register == "wheel" else [register]
+        for name in names:
+            servo._store(servo.spec.reg(name), value)
+        backend = get_backend_factory(family)(robot, port=bus.port, check_limits=False)
+        with pytest.raises(BackendError, match=match):
+            backend.connect()
+        assert not backend.is_connected and not any(s.torque_on for s in bus.servos)
