@@ -91,7 +91,8 @@ class Server:
         if not self.token:
             return None
         auth = request.headers.get("Authorization", "")
-        given = auth[7:] if auth.startswith("Bearer ") else ""
+        scheme, _, value = auth.partition(" ")
+        given = value.strip() if scheme.lower() == "bearer" else ""  # the scheme is case-insensitive (RFC 7235)
         if not given:
             given = (parse_qs(urlsplit(request.path).query).get("token") or [""])[0]
         if given and hmac.compare_digest(given.encode(), self.token.encode()):

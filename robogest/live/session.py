@@ -639,10 +639,10 @@ class StreamUtterance:
         if self._closed:
             raise InputError("stream: feed() after the stream was closed; open a new robot.stream()")
         a = self._pcm(chunk)
-        parsed = []
+        parsed, last_s = [], self._last_word_s
         for w in words or ():
-            word = parse_word(w, self._last_word_s)
-            self._last_word_s = word.start_s
+            word = parse_word(w, last_s)
+            last_s = word.start_s
             parsed.append(word)
         max_s = self.speech.config.max_duration_s
         if (self._offset_n + a.shape[0]) / self.sample_rate > max_s:
@@ -658,6 +658,7 @@ class StreamUtterance:
                 if self._audio_t0 is not None:
                     self.handle._add("audio_chunk", self._audio_t0 + off / self.robot.time_scale, offset_s=off,
                                      n_samples=a.shape[0])  # fmt: skip
+        self._last_word_s = last_s  # only once the whole message is taken
         self._offset_n += a.shape[0]
         self._out.write(a)
         self._queue.put((a, parsed))

@@ -86,6 +86,8 @@ def parse_word(w: tuple[str, float, float] | Word, after_s: float = -math.inf) -
         word = w
     else:
         try:
+            if not isinstance(w, (tuple, list)) or len(w) != 3:
+                raise TypeError
             text, t0, t1 = str(w[0]), float(w[1]), float(w[2])
         except (TypeError, ValueError, IndexError):
             raise InputError(f"stream: a word must be (text, start_s, end_s), got {w!r}") from None

@@ -221,6 +221,11 @@ def test_words_are_checked_in_the_callers_thread():
         s.feed(np.zeros(320, np.int16), words=[("hello", 0.5, 0.7)])
         with pytest.raises(InputError, match="time order"):
             s.feed(np.zeros(320, np.int16), words=[("there", 0.1, 0.3)])
+        with pytest.raises(InputError, match=r"a word must be \(text, start_s, end_s\), got \{'text'"):
+            s.feed(np.zeros(320, np.int16), words=[{"text": "there", "start": 0.8, "end": 0.9}])
+        with pytest.raises(InputError, match="start_s < end_s"):  # a refused message takes none of its words
+            s.feed(np.zeros(320, np.int16), words=[("far", 2.0, 2.2), ("bad", 2.5, 2.4)])
+        s.feed(np.zeros(320, np.int16), words=[("there", 0.8, 1.0)])  # not "before" the refused 2.0 s
 
 
 def test_blas_thread_limit_is_the_sessions_own_and_restored_on_close():

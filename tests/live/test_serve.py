@@ -142,6 +142,8 @@ def test_handshakes_without_token_or_from_a_web_page_are_refused(server):
         assert _recv(ws, "hello")["open"]
     with connect(url + f"?token={TOKEN}", open_timeout=30) as ws:
         assert _recv(ws, "hello")["open"]
+    with connect(url, additional_headers={"Authorization": f"bearer {TOKEN}"}, open_timeout=30) as ws:
+        assert _recv(ws, "hello")["open"]  # the scheme's case does not matter (RFC 7235)
 
 
 def test_says_sent_before_an_interrupt_never_start_after_it(server):
