@@ -40,6 +40,12 @@ class AudioOut:
         self._pos = 0
         self._lock = threading.Lock()
         self._stream: Any = None
+        self._finished = False  # no more writes: the stream stops itself once it has played the rest
+
+    def finish(self) -> None:
+        """No more :meth:`write`: once what is queued has played, the output stream stops by itself (a session
+        otherwise keeps a device stream playing silence until its next utterance)."""
+        self._finished = True
 
     def write(self, chunk: np.ndarray) -> None:
         with self._lock:
@@ -48,6 +54,8 @@ class AudioOut:
     def _callback(self, out: np.ndarray, frames: int, _time: Any, _status: Any) -> None:
         out.fill(0)
         with self._lock:
+            if self._finished and not self._buf:
+                raise self.sd.CallbackStop
             got = 0
             while got < frames and self._buf:
                 head = self._buf[0]
@@ -73,8 +81,9 @@ class AudioOut:
             return False
 
     def stop(self) -> None:
+        """Silence now (``abort``: what is buffered is dropped, where ``stop`` would play it out first) and close."""
         if self._stream is not None:
             with contextlib.suppress(Exception):
-                self._stream.stop()
+                self._stream.abort()
                 self._stream.close()
             self._stream = None

@@ -115,6 +115,7 @@ def play(
     sound = AudioOut(sd, audio_sr) if sd is not None else None
     if sound is not None:
         sound.write(audio)
+        sound.finish()
     wall0 = time.monotonic()
     loop = ControlLoop(backend, rate_hz, threaded=False, read_back=read_back, time_scale=time_scale)
     with signals_end_at_rest():

@@ -488,6 +488,7 @@ class Robot:
         out = AudioOut(self._sd, sr)
         if fill is not None:
             fill(out)
+            out.finish()
 
         def on_start() -> None:  # in the loop's tick: keep short
             played = out.start()
@@ -707,6 +708,7 @@ class StreamUtterance:
             return self.planner.plan()
 
     def _finish(self) -> None:
+        self._out.finish()  # the audio stream stops by itself once it has played the last chunk
         self.speech.close()
         self._plan()
         self.planner.feed.close()

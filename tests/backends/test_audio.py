@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import robogest.backends.player as player
 from robogest.backends.mujoco_sim import MujocoBackend, sine_test_trajectory
@@ -16,14 +17,17 @@ class FakeStream:
     def start(self):
         self.started = True
 
-    def stop(self):
-        pass
+    def abort(self):
+        self.aborted = True
 
     def close(self):
         self.closed = True
 
 
 class FakeSD:
+    class CallbackStop(Exception):  # sounddevice's name
+        pass
+
     def __init__(self):
         self.streams: list[FakeStream] = []
 
@@ -45,6 +49,29 @@ def test_play_streams_the_speech_samples_and_closes_the_stream(monkeypatch):
     stream.callback(out, 1000, None, None)
     np.testing.assert_array_equal(out[:800, 0], audio)  # every sample, in order
     assert not out[800:].any()  # then silence
+    with pytest.raises(FakeSD.CallbackStop):  # and the stream stops itself: all of the speech has played
+        stream.callback(out, 1000, None, None)
+
+
+def test_a_live_stream_plays_until_closed_and_an_interrupt_silences_it_at_once():
+    from robogest.backends.audio import AudioOut
+
+    sd = FakeSD()
+    out = AudioOut(sd, 8000)
+    out.write(np.full(100, 0.25, np.float32))
+    assert out.start()
+    stream = sd.streams[0]
+    buf = np.ones((200, 1), np.float32)
+    stream.callback(buf, 200, None, None)  # the stream is still open: silence after the chunk, no stop
+    stream.callback(buf, 200, None, None)
+    out.write(np.full(50, 0.5, np.float32))
+    out.finish()
+    stream.callback(buf, 200, None, None)
+    assert (buf[:50, 0] == 0.5).all()
+    with pytest.raises(FakeSD.CallbackStop):
+        stream.callback(buf, 200, None, None)
+    out.stop()
+    assert stream.aborted and stream.closed  # abort drops what is buffered, stop would play it out first
 
 
 def test_no_output_device_plays_silently(monkeypatch):
