@@ -192,6 +192,10 @@ class RhythmConfig:
     live_drift_m_s: float = 0.3
 
 
+#: Wrist-path entries (:meth:`RhythmGenerator._path`) kept per generator: the built-in units' pose pairs number a
+#: few hundred, but a live session's late strokes start from whatever pose is held, so over hours the keys would
+#: grow without end (measured: 281-906 new entries, about 0.5 KB each, per 6.6 s streamed utterance).
+FK_CACHE_SIZE = 4096
 #: The same unit is not used twice in a row within this many seconds.
 NO_REPEAT_S = 10.0
 #: Semantic units on one channel keep at least this far apart (seconds).
@@ -630,6 +634,8 @@ class RhythmGenerator(Generator):
         """
         key = a.tobytes() + b.tobytes()
         if key not in self._fk_cache:
+            if len(self._fk_cache) >= FK_CACHE_SIZE:  # a live session's late strokes start anywhere: keep it bounded
+                self._fk_cache.pop(next(iter(self._fk_cache)))  # the oldest entry
             s = np.linspace(0.0, 1.0, 33)[:, None]  # (S, 1) blend
             rot = dofs_to_rotations(a + (b - a) * s)  # (S, J, 4)
             p = CANONICAL.forward_kinematics(rot, np.zeros((len(s), 3)))  # (S, J, 3)

@@ -475,3 +475,18 @@ def test_a_live_plan_speeds_its_drift_up_only_where_the_speed_up_comes_after_the
     beats_s, speed, loud = calls[-1]
     assert speed == c.drift_m_s == 0.45 and np.ptp(loud) > 0.5
     np.testing.assert_allclose(beats_s, g.beats(heard).t_s)
+
+
+def test_the_wrist_path_cache_stays_bounded_and_changes_nothing(monkeypatch):
+    """A live session runs for hours and its late strokes start from any held pose: the cache is capped, and an
+    evicted entry computed again gives the same motion."""
+    import robogest.generators.rhythm as rhythm
+
+    sp = build_speech(8.0, list(np.arange(0.6, 7.5, 0.3)), [])
+    unbounded = RhythmGenerator()
+    full = unbounded.generate(sp, seed=3).rotations
+    assert len(unbounded._fk_cache) > 5
+    monkeypatch.setattr(rhythm, "FK_CACHE_SIZE", 5)
+    gen = RhythmGenerator()
+    np.testing.assert_array_equal(gen.generate(sp, seed=3).rotations, full)
+    assert len(gen._fk_cache) == 5
