@@ -67,17 +67,28 @@ class AudioOut:
                     self._buf.pop(0)
                     self._pos = 0
 
-    def start(self) -> bool:
-        if self.sd is None:
-            return False
+    def open(self) -> None:
+        """Create the device stream now, not started: opening PortAudio takes time that :meth:`start`, called in a
+        control tick when the motion starts, should not."""
+        if self.sd is None or self._stream is not None:
+            return
         try:
             self._stream = self.sd.OutputStream(
                 samplerate=self.sr, channels=1, dtype="float32", callback=self._callback
             )
+        except Exception:
+            self._stream = None
+
+    def start(self) -> bool:
+        """Start playing (opening the stream first if :meth:`open` was not called); False if it cannot."""
+        self.open()
+        if self._stream is None:
+            return False
+        try:
             self._stream.start()
             return True
         except Exception:
-            self._stream = None
+            self.stop()
             return False
 
     def stop(self) -> None:

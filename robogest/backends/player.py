@@ -116,6 +116,7 @@ def play(
     if sound is not None:
         sound.write(audio)
         sound.finish()
+        sound.open()  # outside the control tick that starts it
     wall0 = time.monotonic()
     loop = ControlLoop(backend, rate_hz, threaded=False, read_back=read_back, time_scale=time_scale)
     with signals_end_at_rest():

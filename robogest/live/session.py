@@ -489,6 +489,7 @@ class Robot:
         if fill is not None:
             fill(out)
             out.finish()
+        out.open()  # outside the control tick that starts it
 
         def on_start() -> None:  # in the loop's tick: keep short
             played = out.start()
@@ -496,6 +497,7 @@ class Robot:
 
         with self._say_lock:  # an interrupt now waits until this play is in the loop, where it stops it
             if self._interrupts != asked:
+                out.stop()
                 h._abandon("interrupt")
             else:
                 if self._audio is not None:
@@ -587,6 +589,7 @@ class StreamUtterance:
         self.handle = UtteranceHandle("stream")
         self.handle.trajectory = self.planner.feed
         self._out = AudioOut(robot._sd, sample_rate)
+        self._out.open()  # outside the control tick that starts it
         self._chunks: list[tuple[float, int]] = []  # (offset_s, n_samples) of each chunk, for scheduling
         self._offset_n = 0
         self._t_first: float | None = None  # time.monotonic() of the first chunk: audio time 0 arrived then
@@ -617,6 +620,7 @@ class StreamUtterance:
         with self._state:
             self._dead = True
             if not self._playing and not self.handle.done:
+                self._out.stop()
                 self.handle._abandon("interrupt")
         self._queue.put(_STOP)
 

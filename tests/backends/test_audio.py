@@ -59,8 +59,10 @@ def test_a_live_stream_plays_until_closed_and_an_interrupt_silences_it_at_once()
     sd = FakeSD()
     out = AudioOut(sd, 8000)
     out.write(np.full(100, 0.25, np.float32))
-    assert out.start()
+    out.open()  # the device stream is made outside the control tick; the tick only starts it
     stream = sd.streams[0]
+    assert not stream.started
+    assert out.start() and stream.started and len(sd.streams) == 1
     buf = np.ones((200, 1), np.float32)
     stream.callback(buf, 200, None, None)  # the stream is still open: silence after the chunk, no stop
     stream.callback(buf, 200, None, None)
