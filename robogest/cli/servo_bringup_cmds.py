@@ -72,6 +72,7 @@ def jog(args: argparse.Namespace) -> int:
     with signals_end_at_rest(), ControlLoop(backend, rate_hz=50.0) as loop:  # leaving: rest, torque off
         goal = loop.goal_rad.copy()
         goal[k] = args.angle
+        goal = loop.limiter.clamp_target(goal)  # the loop keeps its margin inside the limits: wait for that pose
         loop.set_idle(lambda t: goal)
         deadline = time.monotonic() + 120.0
         while np.max(np.abs(loop.goal_rad - goal)) > 1e-4 and time.monotonic() < deadline:
@@ -79,7 +80,8 @@ def jog(args: argparse.Namespace) -> int:
         loop.run_for(args.hold)
         reached = loop.goal_rad[k]  # the loop thread owns the port: no read from here
     # leaving the block raised if the loop failed or rest was not reached
-    print(f"{args.joint}: at {reached:+.3f} rad (goal {args.angle:+.3f} rad); back to rest, torque off")
+    kept = "" if abs(goal[k] - args.angle) < 1e-9 else f", kept {abs(goal[k] - args.angle):.3f} rad inside the limit"
+    print(f"{args.joint}: at {reached:+.3f} rad (goal {args.angle:+.3f} rad{kept}); back to rest, torque off")
     return 0
 
 

@@ -156,6 +156,18 @@ def test_jog_moves_one_joint_gently_then_rests_with_torque_off(robots, capsys):
     assert rec["t_s"][reached] - rec["t_s"][start] >= 0.9 * 0.6 / (0.25 * 4.0)
 
 
+def test_jog_to_a_limit_stops_at_the_loops_margin_inside_it(robots, capsys):
+    """The control loop keeps 0.02 rad inside the limits: a jog to the limit itself waited for a pose the loop
+    never reaches (120 s) before going back to rest."""
+    robot = make_robot(robots, n_joints=3, name="jogbot")
+    hi = float(robot.q_max_rad[1])
+    with VirtualBus(robot) as bus:
+        argv = ["servo", "jog", "--robot", "jogbot", "--port", bus.port, "j1", f"{hi}", "--hold", "0", "--speed", "1"]
+        assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert f"j1: at {hi - 0.02:+.3f} rad (goal {hi:+.3f} rad, kept 0.020 rad inside the limit)" in out
+
+
 @pytest.mark.parametrize(("argv", "needle"), [(["j1", "1.5"], "outside its limits"), (["nope", "0.1"], "no joint")])
 def test_jog_refuses_bad_requests_in_one_line(robots, capsys, argv, needle):
     robot = make_robot(robots, n_joints=3, name="jogbot")
