@@ -608,6 +608,14 @@ class ControlLoop:
             return f"could not reach rest ({e})"
         if not rest.done:
             return f"did not reach rest within {timeout_s:.3g} s"
+        if np.any(self.limiter.q_rad != self.rest_q_rad):  # settled within rounding (a glide that took over a motion)
+            try:
+                self.backend.write_goal(self.rest_q_rad, source="control loop, glide to rest")
+            except RobogestError as e:
+                return f"could not reach rest ({e})"
+            self.limiter.reset(self.rest_q_rad)
+            if not self.backend.realtime:
+                self.backend.advance(self.period_s)  # one more tick of simulated time
         self._settle()
         return None
 

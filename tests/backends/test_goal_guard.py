@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import robogest.backends.dynamixel
@@ -175,6 +175,7 @@ SIM_ROBOT = find_robot("humanoid_xl430")
 
 @settings(max_examples=25, deadline=None)
 @given(steps=steps_strategy(len(SIM_ROBOT.joints)), rate_hz=st.sampled_from([20.0, 50.0, 200.0]))
+@example(steps=[("ok", 0, 0.0, [0.0] * 9 + [0.875, 0.0])], rate_hz=200.0)  # a glide from a moving goal stream
 def test_sim_backend_sends_only_safe_goals(steps, rate_hz):
     """At any control rate: the guard's bound and the shutdown ramp both follow it."""
     b = MujocoBackend(SIM_ROBOT)
