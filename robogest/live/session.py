@@ -523,23 +523,27 @@ class Robot:
         """
         self._check_open()
         t0 = time.monotonic()
-        with self._say_lock:  # utterances asked for before now are not started (Robot._start)
+        # Under the lock: utterances asked for before now are not started (Robot._start), and the idle motion
+        # cannot be switched on between here and the glide (Robot._background_start). Lock order: _say_lock, then a
+        # stream's _state (StreamUtterance._start takes them one after the other, never nested).
+        with self._say_lock:
             self._interrupts += 1
             if self._audio is not None:
                 self._audio.stop()
                 self._audio = None
-        for st in list(self._streams):
-            st._interrupt()
-        rest = self.loop.interrupt()
+            for st in list(self._streams):
+                st._interrupt()
+            rest = self.loop.interrupt()
 
         def resume() -> None:
             try:
                 rest.wait()
             except RuntimeError:  # the session closed meanwhile: its own glide took the robot to rest
                 return
-            if self.idle is not None and not self.loop._closed and self.loop._rest is rest:
-                self._idle_resume()
-                self.loop.set_idle(self._idle_target)
+            with self._say_lock:  # not between a newer interrupt's check and its glide
+                if self.idle is not None and not self.loop._closed and self.loop._rest is rest:
+                    self._idle_resume()
+                    self.loop.set_idle(self._idle_target)
 
         if not wait:
             threading.Thread(target=resume, daemon=True, name="robogest-resume-idle").start()
@@ -756,11 +760,14 @@ class StreamUtterance:
                             h._add("audio_chunk", t + off / r.time_scale, offset_s=off, n_samples=n)
 
             play.on_start = on_start
-            with r._say_lock:  # this utterance replaces the one playing: its audio stops now, not at feed time
-                if r._audio is not None and r._audio is not out:
-                    r._audio.stop()
-                r._audio, r._current = out, h
             h._attach(play)
+        with r._say_lock:  # this utterance replaces the one playing: its audio stops now, not at feed time
+            if self._dead:  # interrupted since the play began (interrupt() holds this lock throughout)
+                out.stop()
+                return
+            if r._audio is not None and r._audio is not out:
+                r._audio.stop()
+            r._audio, r._current = out, h
 
     def close(self) -> UtteranceHandle:
         """No more speech: the rest is planned (ending at rest) and plays out. Returns the handle at once."""

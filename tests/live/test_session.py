@@ -291,3 +291,46 @@ def test_a_signal_as_open_finishes_still_ends_at_rest_with_torque_off(monkeypatc
         pass
     assert robot.loop._closed and not robot.loop._thread.is_alive()
     assert robot.loop.backend.inner._torque is False
+
+
+def test_says_streams_and_interrupts_from_several_threads_never_deadlock_and_end_at_rest():
+    """Lock order across the session (an utterance's start, a stream's start, interrupt, idle) under contention:
+    every thread finishes, and the last interrupt leaves the robot at rest."""
+    import threading
+
+    sp = synthesize("One two.")
+    errors: list[BaseException] = []
+    with Robot("humanoid_xl430", backend="sim", idle=True, audio=False, time_scale=FAST, warm_up=False) as robot:
+
+        def talk():
+            for _ in range(3):
+                robot.say("Yes.", wait=False)
+                time.sleep(0.05)
+
+        def stream():
+            for _ in range(3):
+                with robot.stream(sp.sr) as s:
+                    for i in range(0, len(sp.audio), 1600):
+                        s.feed(sp.audio[i : i + 1600])
+
+        def barge_in():
+            for _ in range(6):
+                time.sleep(0.08)
+                robot.interrupt(wait=False)
+
+        def run(f):
+            try:
+                f()
+            except BaseException as e:  # reported below
+                errors.append(e)
+
+        threads = [threading.Thread(target=run, args=(f,)) for f in (talk, stream, barge_in, talk)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(120)
+        assert not any(t.is_alive() for t in threads), "a thread is stuck (deadlock?)"
+        assert not errors, errors
+        r = robot.interrupt()
+        assert r["at_rest_s"] is not None
+        np.testing.assert_allclose(robot.loop.goal_rad, robot.loop.rest_q_rad, atol=1e-4)
