@@ -705,10 +705,11 @@ class StreamUtterance:
                 playing = self._playing
                 if not playing:
                     self.handle._abandon(f"error: {e}")
-            if playing:
+            play = self.handle._play
+            if playing and play is not None and not play.done:  # still what the robot plays: stop it
                 with contextlib.suppress(Exception):
                     self.robot.interrupt(wait=False)
-            else:
+            elif not playing:  # (a stream another utterance has replaced leaves that one alone)
                 self.robot._idle_resume()
 
     def _plan(self) -> int:

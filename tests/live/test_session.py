@@ -334,3 +334,29 @@ def test_says_streams_and_interrupts_from_several_threads_never_deadlock_and_end
         r = robot.interrupt()
         assert r["at_rest_s"] is not None
         np.testing.assert_allclose(robot.loop.goal_rad, robot.loop.rest_q_rad, atol=1e-4)
+
+
+def test_a_replaced_stream_that_fails_later_leaves_the_utterance_playing_now_alone():
+    sp = synthesize("This stream is replaced by a say and then its planner fails.")
+    with Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST, warm_up=False) as robot:
+        s = robot.stream(sp.sr)
+        half = len(sp.audio) // 2
+        for i in range(0, half, 1600):
+            s.feed(sp.audio[i : i + 1600])
+        deadline = time.monotonic() + 30
+        while s.handle.event("first_goal") is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        h = robot.say("Now this.", wait=False)  # replaces the stream's motion
+
+        def broken():
+            raise RuntimeError("planner bug (simulated)")
+
+        s.planner.plan = broken
+        for i in range(half, len(sp.audio), 1600):
+            s.feed(sp.audio[i : i + 1600])
+        deadline = time.monotonic() + 30
+        while s._error is None and time.monotonic() < deadline:  # the stream's thread meets the bug
+            time.sleep(0.01)
+        with pytest.raises(RuntimeError, match="simulated"):
+            s.wait(30)
+        assert h.wait(60) and h.event("done") is not None and not h.interrupted
