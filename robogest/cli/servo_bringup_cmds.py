@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import sys
 import time
@@ -175,6 +176,10 @@ def calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Readings this close to either end of a servo's encoder range (ticks) mean the joint's travel may cross it.
+WRAP_BAND_TICKS = 16
+
+
 def _fit_joint(
     backend: Any, k: int, joint: str, ticks: dict[str, float], seen: list[float], margin: float
 ) -> dict[str, float]:
@@ -183,6 +188,18 @@ def _fit_joint(
     servo = backend.robot.bus.servos[joint]
     model = backend.models[k]
     per_rad = model.ticks_per_rev / (2 * math.pi)
+    readings = [ticks["zero"], *seen]  # in the order they were read
+    half = model.ticks_per_rev / 2
+    wraps = any(abs(b - a) > half for a, b in itertools.pairwise(readings))
+    wraps |= any(abs(r - ticks["zero"]) > half for r in readings)
+    edge = [r for r in readings if r < WRAP_BAND_TICKS or r > model.max_tick - WRAP_BAND_TICKS]
+    if wraps or edge:
+        raise InputError(
+            f"joint {joint}: its travel {'crosses' if wraps else 'reaches'} the end of the servo's encoder range "
+            f"(0 or {model.max_tick} ticks), where the reading jumps a whole turn: limits measured across it would "
+            "span nearly a turn; turn the horn on the servo shaft (or set the servo's homing offset) so that the "
+            "joint's whole travel lies inside the range, then calibrate again; nothing was written"
+        )
     zero = (ticks["zero"] - model.centre_tick) / per_rad
     direction = 1.0 if ticks["upper"] >= ticks["zero"] else -1.0
 

@@ -130,6 +130,20 @@ def test_calibrate_writes_offsets_directions_and_limits_to_a_copy(robots, capsys
     assert "wrote" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize(("lower", "says"), [(3846, "crosses"), (10, "reaches")])
+def test_calibrate_refuses_a_travel_across_the_encoders_wrap(robots, capsys, monkeypatch, lower, says):
+    """Zero at tick 150, upper end at 550, lower end 400 ticks below zero: the reading wraps 0 -> 4095 (3846).
+    Taken as measured, the limits spanned nearly a turn, and a jog within them drove into the mechanical stop."""
+    robot = make_robot(robots, family="feetech", protocol=0.0, n_joints=1, name="wrapbot")
+    with VirtualBus(robot) as bus:
+        monkeypatch.setattr("sys.stdin", _Hand(bus, [(1, 150), (1, 550), (1, lower)]))
+        assert main(["servo", "calibrate", "--robot", "wrapbot", "--port", bus.port]) == 2
+        assert not any(s.torque_on for s in bus.servos)
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f"joint j0: its travel {says} the end of the servo's encoder range (0 or 4095 ticks)" in err
+    assert not (robots / "wrapbot.calibrated.yaml").exists()
+
+
 def test_calibrate_never_writes_over_the_original(robots):
     make_robot(robots, n_joints=1, name="calbot")
     with VirtualBus(load_robot_config(robots / "calbot.yaml")) as bus:
