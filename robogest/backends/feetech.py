@@ -14,7 +14,13 @@ import scservo_sdk as scs
 
 from robogest.backends.base import register_backend
 from robogest.backends.feetech_tables import FT_ERRORS, MODELS, SCS_SIGN_BITS, STS_SIGN_BITS, SCSReg, STSReg
-from robogest.backends.servo_common import ServoBackend, ServoModel, describe_bits, sign_magnitude_decode
+from robogest.backends.servo_common import (
+    ServoBackend,
+    ServoModel,
+    describe_bits,
+    sign_magnitude_decode,
+    sign_magnitude_encode,
+)
 from robogest.errors import BackendError, ConfigError
 from robogest.robot.config import RobotConfig
 
@@ -70,7 +76,7 @@ class FeetechBackend(ServoBackend):
     def _encode(self, reg: Enum, value: int) -> int:
         bit = self._signs.get(reg)  # type: ignore[call-overload]
         if bit is not None and value < 0:
-            return (-value & ((1 << bit) - 1)) | (1 << bit)
+            return sign_magnitude_encode(value, bit)
         return value & ((1 << (8 * reg.value[1])) - 1)
 
     def _decode(self, reg: Enum, raw: int) -> int:

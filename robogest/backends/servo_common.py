@@ -893,6 +893,11 @@ class BusUnreliableError(BackendError):
     """Replies kept getting lost or corrupted: the retry budget or the attempts ran out."""
 
 
+def sign_magnitude_encode(value: int, bit: int) -> int:
+    """``value`` as a register that stores the sign in bit ``bit`` and the magnitude below it."""
+    return (-value & ((1 << bit) - 1)) | (1 << bit) if value < 0 else value
+
+
 def sign_magnitude_decode(raw: int, bit: int | None) -> int:
     """Servo registers that store the sign in bit ``bit`` (Feetech positions/speeds, Dynamixel P1 load)."""
     if bit is not None and raw & (1 << bit):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import signal
 import sys
@@ -91,8 +92,10 @@ def register(subparsers: Any) -> None:
         p = ss.add_parser(
             name,
             help=f"{name} one servo",
-            epilog="With --robot, a write of the goal position outside that joint's limits is refused (exit 4) "
-            "and nothing is written."
+            epilog="With --robot, a goal outside that joint's limits, torque on with the goal away from the servo, "
+            "and any register other than GOAL_POSITION, TORQUE_ENABLE and LED are refused (exit 4) and nothing is "
+            "written. Values are range-checked and written in the register's encoding; an ID already taken on the "
+            "bus is refused."
             if name == "write"
             else None,
         )
@@ -102,7 +105,9 @@ def register(subparsers: Any) -> None:
         p.add_argument("--protocol", choices=_PROTOCOLS, default=None, help=f"default: {robot_s}dxl2")
         p.add_argument("--baud", type=checks.baud, default=None, help=f"default: {robot_s}1000000")
         if name == "write":
-            p.add_argument("--robot", help="robot name or YAML path: goal positions are checked against its limits")
+            p.add_argument("--robot", help="robot name or YAML path: a goal is checked against its joint limits and "
+                           "sent with the joint's speed cap, torque goes on only with the goal near the servo; only "
+                           "GOAL_POSITION, TORQUE_ENABLE and LED are taken (without it: raw registers)")  # fmt: skip
         if name != "ping":
             g = p.add_mutually_exclusive_group(required=True)
             g.add_argument("--register", help="register name, e.g. PRESENT_POSITION")
@@ -186,6 +191,15 @@ def _scan(args: argparse.Namespace) -> int:
     return 0
 
 
+def _answers(link: Any, sid: int) -> bool:
+    """Whether a servo answers at id ``sid`` (its Model Number is read)."""
+    try:
+        link.read(sid, link.reg("MODEL_NUMBER"), attempts=2)
+    except BackendError:
+        return False
+    return True
+
+
 def _resolve(link: Any, args: argparse.Namespace) -> tuple[str, int, int]:
     if args.register:
         regs = link.registers()
@@ -207,6 +221,19 @@ def _robot_protocol(robot: Any) -> str:
     return "sts" if bus.protocol == 0.0 else "scs"
 
 
+def _joint_of_servo(robot: Any, args: argparse.Namespace) -> tuple[Any, int]:
+    """``(backend, k)``: the robot's backend (its rad/tick mapping only; opens nothing) and the index of the joint
+    that servo ``args.id`` moves."""
+    import robogest.backends.dynamixel
+    import robogest.backends.feetech  # noqa: F401 - register the families
+    from robogest.backends.base import get_backend_factory
+
+    joints = {s.id: j for j, s in robot.bus.servos.items()}
+    if args.id not in joints:
+        raise InputError(f"servo id {args.id} is not in robot {robot.name} (ids {sorted(joints)}); check --id")
+    return get_backend_factory(robot.bus.family)(robot, port=args.port), robot.joint_names.index(joints[args.id])
+
+
 def _check_goal_write(robot: Any, args: argparse.Namespace, name: str, addr: int, size: int, regs: Any) -> None:
     """Refuse (nothing written) a goal-position write outside the joint limits of the servo's joint in ``robot``."""
     g_addr, g_size = regs.GOAL_POSITION.value
@@ -219,15 +246,8 @@ def _check_goal_write(robot: Any, args: argparse.Namespace, name: str, addr: int
         )
     import numpy as np
 
-    import robogest.backends.dynamixel
-    import robogest.backends.feetech  # noqa: F401 - register the families
-    from robogest.backends.base import get_backend_factory
-
+    backend, k = _joint_of_servo(robot, args)
     joints = {s.id: j for j, s in robot.bus.servos.items()}
-    if args.id not in joints:
-        raise InputError(f"servo id {args.id} is not in robot {robot.name} (ids {sorted(joints)}); check --id")
-    backend = get_backend_factory(robot.bus.family)(robot, port=args.port)  # the mapping only; opens nothing
-    k = robot.joint_names.index(joints[args.id])
     ends = backend.rad_to_ticks(robot.q_min_rad)[k], backend.rad_to_ticks(robot.q_max_rad)[k]
     lo, hi = int(min(ends)), int(max(ends))
     if not lo <= args.value <= hi:
@@ -237,6 +257,87 @@ def _check_goal_write(robot: Any, args: argparse.Namespace, name: str, addr: int
             f"robot {robot.name}'s joint limits, ticks [{lo}, {hi}] = [{robot.q_min_rad[k]:+.3f}, "
             f"{robot.q_max_rad[k]:+.3f}] rad; nothing written"
         )
+
+
+#: With ``--robot``, ``servo write`` takes only these: the goal is checked against the joint's limits, torque on only
+#: with a goal inside them near the present pose. Registers that move the limits, the zero, the mode, the speed
+#: caps, the id or the baud rate are what the robot YAML and ``servo doctor`` manage; without ``--robot`` the
+#: command is a raw register tool.
+ROBOT_WRITABLE = frozenset({"GOAL_POSITION", "TORQUE_ENABLE", "LED"})
+
+
+def _value_codec(protocol: str, name: str) -> tuple[int | None, bool]:
+    """``(sign bit, two's complement)`` of register ``name``: sign-magnitude registers (Feetech STS/SCS, Dynamixel
+    Protocol 1.0 speeds and loads) and two's-complement ones (Dynamixel X)."""
+    from robogest.backends import dynamixel_tables as dt
+    from robogest.backends import feetech_tables as ft
+
+    signs = {"sts": ft.STS_SIGN_BITS, "scs": ft.SCS_SIGN_BITS, "dxl1": dt.P1_SIGN_BITS}.get(protocol, {})
+    bit = next((b for r, b in signs.items() if r.name == name), None)
+    return bit, protocol == "dxl2" and any(r.name == name for r in dt.X_SIGNED)
+
+
+def _encode_value(protocol: str, name: str, size: int, value: int) -> int:
+    """The register bytes' value for ``value``, or InputError if it does not fit (a two's-complement -100 in a
+    Feetech sign-magnitude register moved the zero by 171 degrees)."""
+    from robogest.backends.servo_common import sign_magnitude_encode
+
+    bit, twos = _value_codec(protocol, name)
+    bits = 8 * size
+    lo, hi = (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) if twos else (0, 2**bits - 1)
+    if bit is not None:
+        lo, hi = -(2**bit - 1), 2**bit - 1
+    if not lo <= value <= hi:
+        raise InputError(f"{name}: value {value} does not fit the {size}-byte register (from {lo} to {hi})")
+    if bit is not None:
+        return sign_magnitude_encode(value, bit)
+    return value & (2**bits - 1)
+
+
+def _decode_value(protocol: str, name: str, size: int, raw: int) -> int:
+    from robogest.backends.servo_common import sign_magnitude_decode
+
+    bit, twos = _value_codec(protocol, name)
+    if bit is not None:
+        return sign_magnitude_decode(raw, bit)
+    if twos and raw >= 2 ** (8 * size - 1):
+        return raw - 2 ** (8 * size)
+    return raw
+
+
+def _check_robot_write(robot: Any, link: Any, args: argparse.Namespace, name: str) -> None:
+    """With ``--robot``: only :data:`ROBOT_WRITABLE`; a goal goes with the servo's speed cap set from the joint's
+    velocity limit; torque on only with the goal inside the limits, near the present pose (a servo moved by hand
+    while off would otherwise snap back to its old goal at full speed)."""
+    if name not in ROBOT_WRITABLE:
+        raise SafetyError(
+            f"servo id {args.id}: with --robot, servo write takes only {', '.join(sorted(ROBOT_WRITABLE))}; {name} "
+            "changes what the robot YAML and `robogest servo doctor` manage (limits, zero, mode, speed, id, baud); "
+            "leave out --robot to write raw registers; nothing written"
+        )
+    if name == "GOAL_POSITION":  # at the joint's speed, as a session moves it, not the servo's full speed
+        backend, k = _joint_of_servo(robot, args)
+        cap = link.reg(backend.REG["speed_cap"].name)
+        units = int(backend.speed_cap_units()[k])
+        link.write(args.id, cap, _encode_value(link.protocol, cap.name, cap.value[1], units))
+    if name != "TORQUE_ENABLE" or args.value == 0:
+        return
+    goal = _decode_value(link.protocol, "GOAL_POSITION", link.reg("GOAL_POSITION").value[1],
+                         link.read(args.id, link.reg("GOAL_POSITION")))  # fmt: skip
+    present = _decode_value(link.protocol, "PRESENT_POSITION", link.reg("PRESENT_POSITION").value[1],
+                            link.read(args.id, link.reg("PRESENT_POSITION")))  # fmt: skip
+    goal_args = argparse.Namespace(id=args.id, value=goal, port=args.port)
+    _check_goal_write(robot, goal_args, "GOAL_POSITION", *link.reg("GOAL_POSITION").value, link.registers())
+    backend, k = _joint_of_servo(robot, args)
+    if abs(goal - present) > TORQUE_ON_WITHIN_RAD * backend.models[k].ticks_per_rev / (2 * math.pi):
+        raise SafetyError(
+            f"servo id {args.id}: torque on would drive it from tick {present} to its goal {goal} at full speed; "
+            f"write GOAL_POSITION {present} (where it is) first; nothing written"
+        )
+
+
+#: ``servo write --robot ... TORQUE_ENABLE 1`` needs the goal within this of the present position, radians.
+TORQUE_ON_WITHIN_RAD = 0.05
 
 
 def _one(args: argparse.Namespace) -> int:
@@ -264,10 +365,17 @@ def _one(args: argparse.Namespace) -> int:
             return 0
         name, addr, size = _resolve(link, args)
         if hasattr(args, "value"):
+            raw = _encode_value(protocol, name, size, args.value)
             if robot is not None:
                 _check_goal_write(robot, args, name, addr, size, link.registers())
+                _check_robot_write(robot, link, args, name)
+            if name == "ID" and args.value != args.id and _answers(link, args.value):
+                raise InputError(
+                    f"servo id {args.id}: id {args.value} is already taken on {args.port} (it answers); two servos "
+                    "with one id garble each other's replies; pick a free id (`robogest servo scan`); nothing written"
+                )
             fn = {1: ph.write1ByteTxRx, 2: ph.write2ByteTxRx, 4: ph.write4ByteTxRx}[size]
-            comm, err = fn(port, args.id, addr, args.value)
+            comm, err = fn(port, args.id, addr, raw)
             if not link.ok(comm):
                 raise BackendError(f"servo id {args.id}: writing {name}: {ph.getTxRxResult(comm)}")
             print(f"id {args.id}: wrote {args.value} to {name}; error byte 0x{err:02X} {ph.getRxPacketError(err)}")
@@ -276,6 +384,7 @@ def _one(args: argparse.Namespace) -> int:
         value, comm, err = fn(port, args.id, addr)
         if not link.ok(comm):
             raise BackendError(f"servo id {args.id}: reading {name}: {ph.getTxRxResult(comm)}")
+        value = _decode_value(protocol, name, size, value)
         print(f"id {args.id}: {name} = {value}" + (f"  (error byte 0x{err:02X})" if err else ""))
         return 0
     finally:

@@ -364,3 +364,59 @@ def test_shutdown_outside_the_limits_turns_torque_off_without_an_unsafe_goal(tmp
         assert any(
             e.startswith("shutdown: could not reach rest (unsafe goal") and "j0 steps" in e for e in backend.events
         ), backend.events
+
+
+def test_servo_write_with_a_robot_guards_torque_speed_and_the_registers_the_yaml_manages(tmp_path, monkeypatch, capsys):
+    robot = make_robot(tmp_path, name="wbot", v_max=0.5)
+    monkeypatch.setenv("ROBOGEST_ROBOTS", str(tmp_path))
+    with VirtualBus(robot) as bus:
+        be = get_backend_factory("dynamixel")(robot, port=bus.port)
+        base = ["servo", "write", "--port", bus.port, "--id", "2", "--robot", "wbot"]
+        for reg, value in (("HOMING_OFFSET", 1000), ("MAX_POSITION_LIMIT", 4095), ("OPERATING_MODE", 1),
+                           ("PROFILE_VELOCITY", 0), ("ID", 7)):  # fmt: skip
+            assert main([*base, "--register", reg, "--value", str(value)]) == 4
+            assert f"with --robot, servo write takes only GOAL_POSITION, LED, TORQUE_ENABLE; {reg}" in (
+                capsys.readouterr().err
+            )
+        # a goal goes with the servo's own speed cap, from the joint's velocity limit
+        present = bus.servo(2).get("present")
+        assert main([*base, "--register", "GOAL_POSITION", "--value", str(present)]) == 0
+        assert bus.servo(2).get("profile_velocity") == be.speed_cap_units()[1] > 0
+        # torque on only with the goal near where the servo is (moved by hand while off, it would snap back)
+        assert main([*base, "--register", "TORQUE_ENABLE", "--value", "1"]) == 0
+        assert main([*base, "--register", "TORQUE_ENABLE", "--value", "0"]) == 0
+        _set_present(bus, 2, present + 300)
+        assert main([*base, "--register", "TORQUE_ENABLE", "--value", "1"]) == 4
+        assert f"torque on would drive it from tick {present + 300} to its goal {present}" in capsys.readouterr().err
+        assert not bus.servo(2).torque_on
+
+
+def test_servo_write_and_read_speak_each_registers_encoding(tmp_path, capsys):
+    robot = make_robot(tmp_path, family="feetech", protocol=0.0, name="ftbot")
+    with VirtualBus(robot) as bus:
+        base = ["--port", bus.port, "--id", "1", "--protocol", "sts", "--register", "HOMING_OFFSET"]
+        assert main(["servo", "write", *base, "--value", "-100"]) == 0
+        assert bus.servo(1).get("Homing_Offset") == -100  # sign-magnitude (sign in bit 11), as the servo reads it
+        assert main(["servo", "read", *base]) == 0
+        assert "HOMING_OFFSET = -100" in capsys.readouterr().out
+        too_big = ["servo", "write", "--port", bus.port, "--id", "1", "--protocol", "sts"]
+        assert main([*too_big, "--register", "MAX_POSITION_LIMIT", "--value", "65536"]) == 2
+        assert "MAX_POSITION_LIMIT: value 65536 does not fit the 2-byte register (from 0 to 65535)" in (
+            capsys.readouterr().err
+        )
+        assert bus.servo(1).get("max") == 4095
+
+
+def test_servo_write_refuses_an_id_another_servo_has(tmp_path, capsys):
+    robot = make_robot(tmp_path, name="idbot", n_joints=2)
+    with VirtualBus(robot) as bus:
+        assert main(["servo", "write", "--port", bus.port, "--id", "2", "--register", "ID", "--value", "1"]) == 2
+        assert "id 1 is already taken" in capsys.readouterr().err
+        assert sorted(s.id for s in bus.servos) == [1, 2]
+
+
+def _set_present(bus: VirtualBus, sid: int, tick: int) -> None:
+    with bus._lock:  # moved by hand, torque off
+        s = bus.servo(sid)
+        s.motion.pos = s.motion.cmd = float(tick)
+        s._sync_feedback()
