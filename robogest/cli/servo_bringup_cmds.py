@@ -224,15 +224,16 @@ def doctor(args: argparse.Namespace) -> int:
     findings = [check_latency_timer(args.port, args.fix)]
     for f in findings:
         print(f.line())
-    expected: dict[int, tuple[str, int, int]] = {}  # id -> (joint, min tick, max tick) from the YAML
+    expected: dict[int, tuple[str, int, int, Any]] = {}  # id -> (joint, min tick, max tick, model) from the YAML
     if args.robot:
         robot, backend = _robot_backend(args.robot, args.port)
         proto = protocol_name(robot.bus.family, robot.bus.protocol)
         lo_t, hi_t = backend.rad_to_ticks(robot.q_min_rad), backend.rad_to_ticks(robot.q_max_rad)
         for k, j in enumerate(robot.joint_names):
-            expected[int(backend.ids[k])] = (j, int(min(lo_t[k], hi_t[k])), int(max(lo_t[k], hi_t[k])))
+            expected[int(backend.ids[k])] = (j, int(min(lo_t[k], hi_t[k])), int(max(lo_t[k], hi_t[k])),
+                                             backend.models[k])  # fmt: skip
         bus_found = scan(args.port, [proto], [robot.bus.baudrate], max_id=max(expected))
-        for sid, (j, _, _) in expected.items():
+        for sid, (j, *_) in expected.items():
             if not any(f.id == sid for f in bus_found):
                 elsewhere = [f for f in scan(args.port, [proto], max_id=sid) if f.id == sid]
                 where = f"; it answers at {elsewhere[0].baud} baud" if elsewhere else ""
@@ -261,7 +262,7 @@ def _say(findings: list[Any], f: Any) -> None:
     print(f.line(), flush=True)
 
 
-def _check_servo(link: Any, f: Any, expected: tuple[str, int, int] | None, fix: bool) -> list[Any]:
+def _check_servo(link: Any, f: Any, expected: tuple[str, int, int, Any] | None, fix: bool) -> list[Any]:
     from robogest.backends.bringup import Finding
 
     who = f"servo id {f.id}" + (f" (joint {expected[0]})" if expected else "")
@@ -274,8 +275,19 @@ def _check_servo(link: Any, f: Any, expected: tuple[str, int, int] | None, fix: 
             out.append(Finding("warn", f"{who}: return delay {f.return_delay_us:.0f} us before every reply; set 0"))
     else:
         out.append(Finding("ok", f"{who}: return delay 0"))
+    if expected is not None and f.model_number != expected[3].number:  # its ticks mean other angles: touch nothing
+        out.append(Finding("error", f"{who}: the bus has a {f.model} ({f.model_number}) where the YAML says "
+                                    f"{expected[3].name} ({expected[3].number}); fix the YAML or the wiring; nothing "
+                                    "written to it"))  # fmt: skip
+        return out
+    if expected is not None and not 0 <= expected[1] <= expected[2] <= expected[3].max_tick:
+        why = (f"{who}: the YAML's joint limits map to [{expected[1]}, {expected[2]}] ticks, outside the servo's "
+               f"range [0, {expected[3].max_tick}]; check its zero_offset_rad and direction (`robogest servo "
+               "calibrate`); limits not written")  # fmt: skip
+        out.append(Finding("error", why))
+        expected = None
     if expected is not None:
-        _, lo, hi = expected
+        _, lo, hi, _ = expected
         smin, smax = f.min_position_tick, f.max_position_tick
         narrower = lo < smin - 1 or hi > smax + 1
         wider = smin < lo - 1 or smax > hi + 1

@@ -258,3 +258,30 @@ def test_calibrate_takes_the_furthest_reading_on_the_way_as_the_end(robots, monk
     per_rad = 4096 / (2 * np.pi)
     assert doc["joints"][0]["upper_rad"] == pytest.approx(840 / per_rad - 0.05, abs=2e-3)  # 2948, not 2748
     assert doc["joints"][0]["lower_rad"] == pytest.approx(-860 / per_rad + 0.05, abs=2e-3)  # 1248, not 1448
+
+
+@pytest.mark.parametrize(("lower", "upper", "zero"), [(-3.1, 0.5, -0.1), (-0.5, 3.1, 0.1)])
+def test_doctor_fix_does_not_write_limits_outside_the_servos_range(robots, capsys, lower, upper, zero):
+    """A zero offset that puts an end below tick 0 or past 4095: the write raised a traceback, or stopped
+    half-way with one limit written."""
+    make_robot(robots, n_joints=1, name="dbot")
+    path = robots / "dbot.yaml"
+    doc = yaml.safe_load(path.read_text())
+    doc["joints"][0].update(lower_rad=lower, upper_rad=upper)
+    doc["bus"]["servos"]["j0"]["zero_offset_rad"] = zero
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    with VirtualBus(load_robot_config(path)) as bus:
+        before = bus.servo(1).get("min"), bus.servo(1).get("max")
+        assert main(["servo", "doctor", "--port", bus.port, "--robot", "dbot", "--fix"]) == 1
+        assert (bus.servo(1).get("min"), bus.servo(1).get("max")) == before
+    assert "outside the servo's range [0, 4095]" in capsys.readouterr().out
+
+
+def test_doctor_refuses_to_fix_a_servo_of_another_model_than_the_yamls(robots, capsys):
+    real = make_robot(robots, family="dynamixel", protocol=1.0, model="MX-28", n_joints=1, name="mxbot")
+    make_robot(robots, family="dynamixel", protocol=1.0, model="AX-12A", n_joints=1, name="axbot")
+    with VirtualBus(real) as bus:
+        before = bus.servo(1).get("min"), bus.servo(1).get("max")
+        assert main(["servo", "doctor", "--port", bus.port, "--robot", "axbot", "--fix"]) == 1
+        assert (bus.servo(1).get("min"), bus.servo(1).get("max")) == before
+    assert "the bus has a MX-28 (29) where the YAML says AX-12A (12)" in capsys.readouterr().out
