@@ -31,7 +31,8 @@ from pathlib import Path
 import yaml
 
 from robogest.errors import ConfigError, InputError
-from robogest.robot.config import RobotConfig
+from robogest.fileio import atomic_path
+from robogest.robot.config import RobotConfig, load_robot_config
 
 _FIELDS = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
 
@@ -112,12 +113,19 @@ def import_lerobot_calibration(
     lookup = getattr(get_backend_factory(robot.bus.family), "lookup_model", None)
     changes: list[str] = []
     unused = set(calib)
+    used: dict[str, str] = {}  # motor -> the joint it calibrates
     for k, j in enumerate(robot.joints):
         servo = robot.bus.servos[j.name]
         motor = j.name if j.name in calib else by_id.get(servo.id)
         if motor is None:
             changes.append(f"{j.name}: not in the calibration file (no motor of that name or id {servo.id}); kept")
             continue
+        if motor in used:
+            raise InputError(
+                f"{calib_path}: motor {motor!r} matches both joint {used[motor]!r} (by name or id) and joint "
+                f"{j.name!r}; rename the motors after the robot's joints; nothing written"
+            )
+        used[motor] = j.name
         unused.discard(motor)
         c = calib[motor]
         model = lookup(servo.model, robot.bus.protocol) if lookup else None
@@ -168,5 +176,7 @@ def import_lerobot_calibration(
         f"# {Path(calib_path).name} (robogest robots import-lerobot-calibration). See {src.name} for the "
         "comments on each value.\n"
     )
-    out.write_text(header + yaml.safe_dump(raw, sort_keys=False, default_flow_style=None, width=120))
+    with atomic_path(out, suffix=".yaml") as tmp:  # only a copy that loads replaces anything
+        tmp.write_text(header + yaml.safe_dump(raw, sort_keys=False, default_flow_style=None, width=120))
+        load_robot_config(tmp)
     return CalibrationImport(out, changes)

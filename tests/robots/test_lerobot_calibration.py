@@ -111,6 +111,23 @@ def test_bad_calibration_files(tmp_path, so101_copy, calib, pattern):
         import_lerobot_calibration(_write(tmp_path, calib), so101_copy)
 
 
+def test_one_motor_for_two_joints_is_refused_and_a_good_copy_is_kept(tmp_path, so101_copy):
+    """A motor named after one joint with the id of another matched both: two joints, one servo id. The copy
+    failed to load but stayed written, and with --force replaced a good one."""
+    good = import_lerobot_calibration(_write(tmp_path, CALIB), so101_copy).path
+    before = good.read_text()
+    calib = {k: v for k, v in CALIB.items() if k != "shoulder_pan"}
+    calib["shoulder_lift"] = {**CALIB["shoulder_lift"], "id": 1}  # shoulder_pan's id, under shoulder_lift's name
+    with pytest.raises(InputError, match=r"motor 'shoulder_lift' matches both joint 'shoulder_pan' .* and joint "
+                                         r"'shoulder_lift'; .* nothing written"):  # fmt: skip
+        import_lerobot_calibration(_write(tmp_path, calib), so101_copy, overwrite=True)
+    assert good.read_text() == before
+    twice = {**CALIB, "shoulder_pan": {**CALIB["shoulder_pan"], "id": 2}}  # both joints' servos on id 2
+    with pytest.raises(ConfigError, match=r"servo ids \[2\]"):
+        import_lerobot_calibration(_write(tmp_path, twice), so101_copy, overwrite=True)
+    assert good.read_text() == before  # a copy that does not load replaces nothing
+
+
 def test_never_over_the_original(tmp_path, so101_copy):
     calib = _write(tmp_path, CALIB)
     with pytest.raises(InputError, match="is the robot's own YAML"):
