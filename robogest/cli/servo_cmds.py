@@ -407,20 +407,28 @@ def _check(args: argparse.Namespace) -> int:
     backend.connect()  # pings ids, checks models; raises naming the servo
     try:
         q = backend.read_positions()
-        bad = 0
+        bad = hot = volts = 0
         for k, name in enumerate(robot.joint_names):
             sid = int(backend.ids[k])
             h = backend.read_health(sid)
+            lo_v, hi_v = backend._volt_limits.get(sid, (0.0, float("inf")))
             inside = robot.q_min_rad[k] <= q[k] <= robot.q_max_rad[k]
-            bad += not inside
+            too_hot = h["temperature_c"] > backend.max_temperature_c
+            off_volts = not lo_v <= h["voltage_v"] <= hi_v
+            bad, hot, volts = bad + (not inside), hot + too_hot, volts + off_volts
+            flags = [] if inside else ["OUTSIDE LIMITS"]
+            flags += [f"TOO HOT (limit {backend.max_temperature_c:.0f} °C)"] if too_hot else []
+            flags += [f"SUPPLY OUTSIDE [{lo_v:.1f}, {hi_v:.1f}] V"] if off_volts else []
             print(
                 f"id {sid:3d} {name:16s} {backend.models[k].name:11s} q={q[k]:+.3f} rad "
-                f"[{robot.q_min_rad[k]:+.2f}, {robot.q_max_rad[k]:+.2f}] {'ok' if inside else 'OUTSIDE LIMITS'}  "
+                f"[{robot.q_min_rad[k]:+.2f}, {robot.q_max_rad[k]:+.2f}] {', '.join(flags) or 'ok'}  "
                 f"{h['temperature_c']:.0f} °C  {h['voltage_v']:.1f} V"
             )
-        ok_temp = all(backend.read_health(int(i))["temperature_c"] <= backend.max_temperature_c for i in backend.ids)
-        print("all servos present, models match" + ("" if bad == 0 else f"; {bad} joint(s) outside limits"))
-        return 0 if bad == 0 and ok_temp and np.all(np.isfinite(q)) else 5
+        counts = ((bad, "joint(s) outside limits"), (hot, "servo(s) too hot"),
+                  (volts, "servo(s) with the supply outside their range"))  # fmt: skip
+        problems = [f"{n} {what}" for n, what in counts if n]
+        print("all servos present, models match" + "".join(f"; {p}" for p in problems))
+        return 0 if not problems and np.all(np.isfinite(q)) else 5
     finally:
         backend.disconnect()
 

@@ -285,3 +285,24 @@ def test_doctor_refuses_to_fix_a_servo_of_another_model_than_the_yamls(robots, c
         assert main(["servo", "doctor", "--port", bus.port, "--robot", "axbot", "--fix"]) == 1
         assert (bus.servo(1).get("min"), bus.servo(1).get("max")) == before
     assert "the bus has a MX-28 (29) where the YAML says AX-12A (12)" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("setup", "flag", "summary"),
+    [
+        (lambda s: setattr(s.motion, "temp_c", 72.0), "TOO HOT (limit 65 °C)", "1 servo(s) too hot"),
+        (lambda s: s._store(s.spec.reg("Min_Voltage_Limit"), 130), "SUPPLY OUTSIDE [13.0, ",
+         "1 servo(s) with the supply outside their range"),
+    ],
+    ids=["hot", "voltage"],
+)  # fmt: skip
+def test_robots_check_says_which_servo_is_unhealthy_and_why(robots, capsys, setup, flag, summary):
+    """It exited 5 for a hot servo while every line said ok, and exit 0 with the supply below a servo's limit."""
+    robot = make_robot(robots, n_joints=2, name="chkbot")
+    with VirtualBus(robot) as bus:
+        with bus._lock:
+            setup(bus.servo(1))
+            bus.servo(1)._sync_feedback()
+        assert main(["robots", "check", "chkbot", "--port", bus.port]) == 5
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert flag in next(x for x in lines if x.startswith("id   1")) and lines[-1].endswith(summary)
