@@ -200,7 +200,15 @@ def set_baud(port: str, protocol: str, sid: int, old_baud: int, new_baud: int) -
         was = link.read(sid, lock) if lock is not None and protocol in ("sts", "scs") else 0
         if was:
             link.write(sid, lock, 0)
-        link.write(sid, link.reg("BAUD_RATE"), value, attempts=1)  # the reply may already come at the new rate
+        try:
+            err = link.write(sid, link.reg("BAUD_RATE"), value, attempts=1)
+        except BackendError:  # no reply at the old rate: it may already come at the new one (checked below)
+            err = 0
+        if err:
+            raise BackendError(
+                f"servo id {sid}: refused the Baud Rate write (status error 0x{err:02X}); a servo whose EEPROM is "
+                "locked (Dynamixel AX/MX Lock = 1) keeps its settings until it is powered off and on again"
+            )
     time.sleep(0.05)
     with ServoLink(port, protocol, new_baud) as link:
         link.read(sid, link.reg("MODEL_NUMBER"))  # answers at the new rate, or raises naming the servo

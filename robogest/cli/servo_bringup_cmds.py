@@ -165,10 +165,15 @@ def calibrate(args: argparse.Namespace) -> int:
         tmp.write_text(yaml.safe_dump(doc, sort_keys=False))
     load_robot_config(out)  # the copy must load
     for j, m in measured.items():
+        k = robot.joint_names.index(j)
+        lo, hi = float(robot.q_min_rad[k]), float(robot.q_max_rad[k])
+        wider = m["lower_rad"] < lo - 1e-3 or m["upper_rad"] > hi + 1e-3  # beyond what the line shows
         print(
             f"{j}: zero_offset_rad {m['zero_offset_rad']:+.4f}, direction {int(m['direction']):+d}, "
             f"limits [{m['lower_rad']:+.3f}, {m['upper_rad']:+.3f}] rad"
-        )
+            + (f" (WIDER than the original's [{lo:+.3f}, {hi:+.3f}]: the measured travel; narrow them in the copy "
+               "if the original's were chosen on purpose)" if wider else "")
+        )  # fmt: skip
     print(
         f"wrote {out} (the original {src} is unchanged); review the copy, then "
         f"`robogest servo doctor --port {backend.port_name} --robot {out} --fix` writes its limits into the servos"

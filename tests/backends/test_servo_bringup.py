@@ -127,7 +127,11 @@ def test_calibrate_writes_offsets_directions_and_limits_to_a_copy(robots, capsys
     assert doc["joints"][1]["upper_rad"] == pytest.approx(652 / per_rad - 0.05, abs=1e-3)
     calibrated = load_robot_config(out)
     assert calibrated.joint_names == robot.joint_names
-    assert "wrote" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "wrote" in printed
+    lines = {x.split(":")[0]: x for x in printed.splitlines() if x.startswith("j")}
+    assert "WIDER than the original's [" in lines["j0"]  # 1.18 rad measured, 1.0 in the YAML: said, not hidden
+    assert "WIDER" not in lines["j1"]
 
 
 @pytest.mark.parametrize(("lower", "says"), [(3846, "crosses"), (10, "reaches")])
@@ -306,3 +310,16 @@ def test_robots_check_says_which_servo_is_unhealthy_and_why(robots, capsys, setu
         assert main(["robots", "check", "chkbot", "--port", bus.port]) == 5
     lines = capsys.readouterr().out.strip().splitlines()
     assert flag in next(x for x in lines if x.startswith("id   1")) and lines[-1].endswith(summary)
+
+
+def test_doctor_says_a_locked_servo_refused_its_baud_rate(robots, capsys):
+    """An AX with Lock = 1 refuses EEPROM writes: doctor said 'no status packet' at the new rate instead."""
+    robot = make_robot(robots, family="dynamixel", protocol=1.0, n_joints=2, name="axbot")
+    with VirtualBus(robot) as bus:
+        with bus._lock:
+            s2 = bus.servo(2)
+            s2._store(s2.spec.reg("baud"), 34)  # 57143 baud
+            s2._store(s2.spec.reg("lock"), 1)
+        assert main(["servo", "doctor", "--port", bus.port, "--robot", "axbot", "--fix"]) == 5
+        assert s2.baudrate == 57143
+    assert "servo id 2: refused the Baud Rate write (status error 0x40)" in capsys.readouterr().err
