@@ -381,11 +381,8 @@ class Robot:
         reached, or None."""
         if not self._opened or self.loop is None:
             return None
-        self._stop_audio()
         with self._say_lock:
-            self._interrupts += 1
-        for st in list(self._streams):
-            st._interrupt()
+            self._cancel_locked()
         try:
             return self.loop.close()
         finally:
@@ -500,20 +497,28 @@ class Robot:
                 out.stop()
                 h._abandon("interrupt")
             else:
-                if self._audio is not None:
-                    self._audio.stop()
+                self._replace_audio(out)
                 play = self.loop.play(traj, approach_within_rad=self.approach_within_rad)
                 play.on_start = on_start
-                self._current, self._audio = h, out
+                self._current = h
                 h._attach(play)
         if h._play is None:  # abandoned: the idle motion comes back
             self._idle_resume()
 
-    def _stop_audio(self) -> None:
-        with self._say_lock:
-            if self._audio is not None:
-                self._audio.stop()
-                self._audio = None
+    def _replace_audio(self, out: AudioOut | None) -> None:
+        """The caller holds ``_say_lock``: the speech audio playing stops (unless it is ``out``); ``out`` (None:
+        nothing) becomes the session's."""
+        if self._audio is not None and self._audio is not out:
+            self._audio.stop()
+        self._audio = out
+
+    def _cancel_locked(self) -> None:
+        """The caller holds ``_say_lock``: utterances asked for so far are not started (:meth:`_start`), the audio
+        stops, and every unfinished stream is interrupted (lock order: ``_say_lock``, then a stream's ``_state``)."""
+        self._interrupts += 1
+        self._replace_audio(None)
+        for st in list(self._streams):
+            st._interrupt()
 
     def interrupt(self, wait: bool = True) -> dict:
         """Stop speaking now and glide to rest as fast as the limits allow (idle resumes after it).
@@ -523,16 +528,11 @@ class Robot:
         """
         self._check_open()
         t0 = time.monotonic()
-        # Under the lock: utterances asked for before now are not started (Robot._start), and the idle motion
-        # cannot be switched on between here and the glide (Robot._background_start). Lock order: _say_lock, then a
-        # stream's _state (StreamUtterance._start takes them one after the other, never nested).
+        # Under the lock, through the glide's start: the idle motion cannot be switched on in between
+        # (Robot._background_start). StreamUtterance._start takes _say_lock and its own _state one after the other,
+        # never nested.
         with self._say_lock:
-            self._interrupts += 1
-            if self._audio is not None:
-                self._audio.stop()
-                self._audio = None
-            for st in list(self._streams):
-                st._interrupt()
+            self._cancel_locked()
             rest = self.loop.interrupt()
 
         def resume() -> None:
@@ -766,9 +766,8 @@ class StreamUtterance:
             if self._dead:  # interrupted since the play began (interrupt() holds this lock throughout)
                 out.stop()
                 return
-            if r._audio is not None and r._audio is not out:
-                r._audio.stop()
-            r._audio, r._current = out, h
+            r._replace_audio(out)
+            r._current = h
 
     def close(self) -> UtteranceHandle:
         """No more speech: the rest is planned (ending at rest) and plays out. Returns the handle at once."""
