@@ -305,6 +305,12 @@ def _decode_value(protocol: str, name: str, size: int, raw: int) -> int:
     return raw
 
 
+def _read_value(link: Any, sid: int, name: str) -> int:
+    """Register ``name`` of servo ``sid``, decoded (:func:`_decode_value`)."""
+    reg = link.reg(name)
+    return _decode_value(link.protocol, name, reg.value[1], link.read(sid, reg))
+
+
 def _check_robot_write(robot: Any, link: Any, args: argparse.Namespace, name: str) -> None:
     """With ``--robot``: only :data:`ROBOT_WRITABLE`; a goal goes with the servo's speed cap set from the joint's
     velocity limit; torque on only with the goal inside the limits, near the present pose (a servo moved by hand
@@ -315,20 +321,17 @@ def _check_robot_write(robot: Any, link: Any, args: argparse.Namespace, name: st
             "changes what the robot YAML and `robogest servo doctor` manage (limits, zero, mode, speed, id, baud); "
             "leave out --robot to write raw registers; nothing written"
         )
+    if name == "LED" or (name == "TORQUE_ENABLE" and args.value == 0):
+        return
+    backend, k = _joint_of_servo(robot, args)
     if name == "GOAL_POSITION":  # at the joint's speed, as a session moves it, not the servo's full speed
-        backend, k = _joint_of_servo(robot, args)
         cap = link.reg(backend.REG["speed_cap"].name)
         units = int(backend.speed_cap_units()[k])
         link.write(args.id, cap, _encode_value(link.protocol, cap.name, cap.value[1], units))
-    if name != "TORQUE_ENABLE" or args.value == 0:
         return
-    goal = _decode_value(link.protocol, "GOAL_POSITION", link.reg("GOAL_POSITION").value[1],
-                         link.read(args.id, link.reg("GOAL_POSITION")))  # fmt: skip
-    present = _decode_value(link.protocol, "PRESENT_POSITION", link.reg("PRESENT_POSITION").value[1],
-                            link.read(args.id, link.reg("PRESENT_POSITION")))  # fmt: skip
+    goal, present = (_read_value(link, args.id, r) for r in ("GOAL_POSITION", "PRESENT_POSITION"))
     goal_args = argparse.Namespace(id=args.id, value=goal, port=args.port)
     _check_goal_write(robot, goal_args, "GOAL_POSITION", *link.reg("GOAL_POSITION").value, link.registers())
-    backend, k = _joint_of_servo(robot, args)
     if abs(goal - present) > TORQUE_ON_WITHIN_RAD * backend.models[k].ticks_per_rev / (2 * math.pi):
         raise SafetyError(
             f"servo id {args.id}: torque on would drive it from tick {present} to its goal {goal} at full speed; "
