@@ -25,3 +25,11 @@ def sine_traj(robot, seconds: float = 2.0, fps: float = 50.0, amp: float = 0.4) 
         q_min_rad=robot.q_min_rad, q_max_rad=robot.q_max_rad, v_max_rad_s=robot.v_max_rad_s,
         a_max_rad_s2=robot.a_max_rad_s2, rest_q_rad=robot.rest_q_rad, silent=np.zeros(len(t), bool),
     )  # fmt: skip
+
+
+def move_by_hand(bus, sid: int, tick: int) -> None:
+    """Servo ``sid`` of the simulated ``bus`` is moved by hand to ``tick`` (torque is off)."""
+    with bus._lock:
+        s = bus.servo(sid)
+        s.motion.pos = s.motion.cmd = float(tick)
+        s._sync_feedback()

@@ -24,7 +24,7 @@ from robogest.robot import find_robot
 from robogest.trajectory import Trajectory, check_matches
 from robogest.virtualbus import VirtualBus
 from robogest.virtualbus.testing import make_robot
-from tests.backends.conftest import sine_traj
+from tests.backends.conftest import move_by_hand, sine_traj
 
 RATE_HZ = 50.0
 KINDS = ["ok", "ok", "ok", "ok", "nan", "inf", "out", "fast"]  # mostly legal goals, some of each illegal kind
@@ -385,7 +385,7 @@ def test_servo_write_with_a_robot_guards_torque_speed_and_the_registers_the_yaml
         # torque on only with the goal near where the servo is (moved by hand while off, it would snap back)
         assert main([*base, "--register", "TORQUE_ENABLE", "--value", "1"]) == 0
         assert main([*base, "--register", "TORQUE_ENABLE", "--value", "0"]) == 0
-        _set_present(bus, 2, present + 300)
+        move_by_hand(bus, 2, present + 300)
         assert main([*base, "--register", "TORQUE_ENABLE", "--value", "1"]) == 4
         assert f"torque on would drive it from tick {present + 300} to its goal {present}" in capsys.readouterr().err
         assert not bus.servo(2).torque_on
@@ -413,10 +413,3 @@ def test_servo_write_refuses_an_id_another_servo_has(tmp_path, capsys):
         assert main(["servo", "write", "--port", bus.port, "--id", "2", "--register", "ID", "--value", "1"]) == 2
         assert "id 1 is already taken" in capsys.readouterr().err
         assert sorted(s.id for s in bus.servos) == [1, 2]
-
-
-def _set_present(bus: VirtualBus, sid: int, tick: int) -> None:
-    with bus._lock:  # moved by hand, torque off
-        s = bus.servo(sid)
-        s.motion.pos = s.motion.cmd = float(tick)
-        s._sync_feedback()

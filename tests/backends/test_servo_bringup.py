@@ -15,6 +15,7 @@ from robogest.cli.main import main
 from robogest.robot.config import load_robot_config
 from robogest.virtualbus import VirtualBus
 from robogest.virtualbus.testing import make_robot
+from tests.backends.conftest import move_by_hand
 
 
 @pytest.fixture
@@ -80,13 +81,6 @@ def test_doctor_moves_a_servo_found_at_another_baud_to_the_yamls(robots, capsys)
         assert s2.baudrate == 1_000_000
 
 
-def _set_tick(bus: VirtualBus, sid: int, tick: int) -> None:
-    with bus._lock:  # a hand moves the joint (torque is off)
-        s = bus.servo(sid)
-        s.motion.pos = s.motion.cmd = float(tick)
-        s._sync_feedback()
-
-
 class _Hand:
     """stdin for ``servo calibrate``: at each prompt, move the next joint as a person would, then press Enter."""
 
@@ -97,7 +91,7 @@ class _Hand:
         if not self.moves:
             return ""
         sid, tick = self.moves.pop(0)
-        _set_tick(self.bus, sid, tick)
+        move_by_hand(self.bus, sid, tick)
         time.sleep(0.02)
         return "\n"
 
@@ -240,7 +234,7 @@ def test_calibrate_takes_the_furthest_reading_on_the_way_as_the_end(robots, monk
     with VirtualBus(robot) as bus:
 
         def settle_at(tick: int) -> None:
-            _set_tick(bus, 1, tick)
+            move_by_hand(bus, 1, tick)
             seen = bus.stats["packets_in"]
             t_end = time.monotonic() + 10
             while bus.stats["packets_in"] < seen + 3 and time.monotonic() < t_end:  # sampled since
