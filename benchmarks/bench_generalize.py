@@ -111,9 +111,11 @@ def beat2_clips() -> tuple[list[Clip], dict]:
     end = mocap.n_frames / mocap.fps
     calib = _cut(full, 0.0, CUT_S)
     held = _cut(full, CUT_S, end)
-    pos = mocap.positions()[: round(CUT_S * mocap.fps)]
-    w = pos[:, [mocap.skeleton.index("l_wrist"), mocap.skeleton.index("r_wrist")]]
-    ref = wrist_stats(w, mocap.fps, calib.silent_spans)
+    w = mocap.positions()[:, [mocap.skeleton.index("l_wrist"), mocap.skeleton.index("r_wrist")]]  # (T, 2, 3) m
+    cut = round(CUT_S * mocap.fps)
+    ref = wrist_stats(w[:cut], mocap.fps, calib.silent_spans)
+    # The speaker's own held-out speech frames, in time order: what a real-vs-real Hellinger is drawn from.
+    ref["held_speeds"] = wrist_stats(w[cut:], mocap.fps, held.silent_spans)["speeds_by_frame"]
 
     def cut_events(t0: float, t1: float) -> np.ndarray:
         return stressed[(stressed >= t0) & (stressed < t1)] - t0
@@ -132,9 +134,29 @@ def wrist_stats(w: np.ndarray, fps: float, silent_spans) -> dict:
     speech = ~spans_to_mask(list(silent_spans), w.shape[0], fps)
     v = np.diff(w, axis=0) * fps * 100  # (T-1, W, 3) cm/s
     a = np.diff(w, n=2, axis=0) * fps**2 * 100  # (T-2, W, 3) cm/s²
-    sv = np.linalg.norm(v, axis=-1)[speech[1:] & speech[:-1]]
+    sv = np.linalg.norm(v, axis=-1)[speech[1:] & speech[:-1]]  # (N, W)
     sa = np.linalg.norm(a, axis=-1)[speech[2:] & speech[1:-1] & speech[:-2]]
-    return {"speeds": sv.ravel(), "speed": float(sv.mean()), "acc": float(sa.mean())}
+    return {"speeds": sv.ravel(), "speeds_by_frame": sv, "speed": float(sv.mean()), "acc": float(sa.mean())}
+
+
+def hellinger_to_ref(speeds: np.ndarray, ref: dict) -> float:
+    """Hellinger distance between the histograms (1 cm/s bins) of ``speeds`` (cm/s) and the speaker's."""
+    from robogest.eval.kinematics import hellinger_distance, speed_histogram
+
+    top = max(speeds.max(), ref["speeds"].max())
+    return hellinger_distance(speed_histogram(speeds, 1.0, top)[0], speed_histogram(ref["speeds"], 1.0, top)[0])
+
+
+def real_hellinger_floor(n_frames: int, ref: dict, step: int = 30) -> float:
+    """What the speaker's own motion scores: the mean Hellinger distance to his calibration-half histogram of
+    every run of ``n_frames`` consecutive speech frames (both wrists) of his held-out half, one run every
+    ``step`` frames. A histogram of few frames is noisy and the distance grows as frames get fewer, so a clip's
+    distance means something only beside this floor for its length (NaN when the held-out half is shorter)."""
+    held = ref["held_speeds"]  # (N, 2) cm/s
+    if n_frames > held.shape[0]:
+        return float("nan")
+    starts = range(0, held.shape[0] - n_frames + 1, step)
+    return float(np.mean([hellinger_to_ref(held[i : i + n_frames].ravel(), ref) for i in starts]))
 
 
 def rest_held(w: np.ndarray, fps: float, silent_spans, duration_s: float) -> float:
@@ -164,7 +186,6 @@ def tts_clips() -> list[Clip]:
 def measure(clip: Clip, ref: dict, seeds: range, robot=None, generator_options: dict | None = None) -> dict:
     """Per-seed metrics of one clip: lists under each metric name."""
     from robogest.eval.beats import chance_corrected, stroke_hit_rate, stroke_sync, stroke_sync_events
-    from robogest.eval.kinematics import hellinger_distance, speed_histogram
     from robogest.generators import make_generator
 
     sp = clip.speech
@@ -182,12 +203,13 @@ def measure(clip: Clip, ref: dict, seeds: range, robot=None, generator_options: 
         w = m.positions()[:, [m.skeleton.index("l_wrist"), m.skeleton.index("r_wrist")]]
         z = stroke_sync(w, m.fps, onsets, spans)["z"]
         st = wrist_stats(w, m.fps, spans)
-        top = max(st["speeds"].max(), ref["speeds"].max())
-        h = hellinger_distance(speed_histogram(st["speeds"], 1.0, top)[0], speed_histogram(ref["speeds"], 1.0, top)[0])
+        h = hellinger_to_ref(st["speeds"], ref)
         out["z"].append(z)
         out["speed"].append(st["speed"] / ref["speed"])
         out["acc"].append(st["acc"] / ref["acc"])
         out["hellinger"].append(h)
+        if seed == seeds[0]:  # the same number of speech frames for every seed
+            out["real_H"] = [real_hellinger_floor(st["speeds_by_frame"].shape[0], ref)]
         out["rest"].append(rest_held(w, m.fps, spans, sp.duration_s))
         if robot is not None:
             from robogest.backends.mujoco_sim import wrist_site_positions
@@ -207,6 +229,7 @@ WORST = {
     "rest": np.nanmin,
     "robot_z": np.nanmin,
     "hellinger": np.nanmax,
+    "real_H": np.nanmax,
     "speed": lambda x: x[np.nanargmax(np.abs(np.log(x)))],
     "acc": lambda x: x[np.nanargmax(np.abs(np.log(x)))],
     "robot/human": lambda x: x[np.nanargmax(np.abs(np.asarray(x) - 1))],

@@ -80,6 +80,14 @@ class RhythmConfig:
     max_wrist_speed_m_s : float
         Cap on the wrist speed peak of any move (BEAT2's speaker: 99th percentile ~2.1 m/s); moves are
         lengthened, or a gesture skipped, to stay under it.
+    max_wrist_accel_m_s2 : float or None
+        Cap on the wrist acceleration peak of any move (a quintic's 5.77 x path / T²): moves are lengthened to
+        stay under it. 15 m/s² is the BEAT2 speaker's 99th percentile during speech on the calibration half
+        (30 fps differences), set from his motion, not searched. Without it strokes peaked at up to 30 m/s²
+        (his maximum: 22) and the eSpeak clips' acceleration ran 1.23-1.49x his (their semantic units have
+        short, wide strokes); with it 1.04-1.34x, and 1.02x on both BEAT2 halves, at a cost of stroke-sync
+        z 6.44 -> 6.10 on the calibration half (held-out half 5.53 -> 5.55; ``bench_generalize.py``,
+        10 seeds). None turns it off.
     stroke_scale : float
         Multiplies every unit's stroke duration (longer strokes: lower acceleration, same beat timing).
     prep_speed_ratio : float
@@ -175,6 +183,7 @@ class RhythmConfig:
     sway_rad: float = 0.05
     head_beat_prob: float = 0.35
     max_wrist_speed_m_s: float = 2.4
+    max_wrist_accel_m_s2: float | None = 15.0
     stroke_scale: float = 1.0
     prep_speed_ratio: float = 0.7
     hold_scale: float = 0.0
@@ -404,6 +413,8 @@ class RhythmGenerator(Generator):
                 f"drift_beat_rad must be within [0, 1] rad and drift_beat_s within [0.01, 0.2] s, got "
                 f"{c.drift_beat_rad} and {c.drift_beat_s}"
             )
+        if c.max_wrist_accel_m_s2 is not None and not c.max_wrist_accel_m_s2 > 0:
+            raise InputError(f"max_wrist_accel_m_s2 must be above 0 m/s² (None: no cap), got {c.max_wrist_accel_m_s2}")
         if not 0.0 <= c.stroke_lead_s <= 0.5:
             raise InputError(f"stroke_lead_s must be within [0, 0.5] s, got {c.stroke_lead_s}")
         for key in ("drift_m_s", "live_drift_m_s"):  # a wrist speed: beyond 1 m/s the drift would be a gesture
@@ -653,9 +664,13 @@ class RhythmGenerator(Generator):
 
     def _min_time_s(self, a: np.ndarray, b: np.ndarray) -> float:
         """Shortest minimum-jerk move from pose ``a`` to ``b`` whose wrist speed stays under the cap (the
-        path's steepest stretch times the quintic's peak rate 1.875 / T)."""
+        path's steepest stretch times the quintic's peak rate 1.875 / T) and, with ``max_wrist_accel_m_s2``,
+        whose wrist acceleration stays under that (its peak 5.77 / T² times the same stretch)."""
         c = self.config
-        t = 1.875 * self._path(a, b)[0] / c.max_wrist_speed_m_s
+        rate = self._path(a, b)[0]
+        t = 1.875 * rate / c.max_wrist_speed_m_s
+        if c.max_wrist_accel_m_s2:
+            t = max(t, float(np.sqrt(5.7735 * rate / c.max_wrist_accel_m_s2)))
         if c.max_joint_speed_rad_s or c.max_joint_accel_rad_s2:
             d = float(np.abs(b - a).max())  # largest angle change, rad
             if c.max_joint_speed_rad_s:

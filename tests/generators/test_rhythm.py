@@ -6,6 +6,7 @@ import itertools
 import numpy as np
 import pytest
 
+from robogest.errors import InputError
 from robogest.eval.beats import stroke_peaks
 from robogest.generators import DEFAULT_GENERATOR, make_generator
 from robogest.generators.acoustic import acoustic_beats
@@ -287,6 +288,27 @@ def test_wrist_speed_cap(speech_with_pause):
     g = RhythmGenerator(fps=100.0, sway_rad=0.0, drift_m_s=0.0, max_wrist_speed_m_s=1.2)
     v = wrist_speed_cm_s(g.generate(speech_with_pause, seed=0))
     assert 60 < v.max() <= 121  # it gestures, and no move is faster than the cap (1% for discretisation)
+
+
+def wrist_accel_m_s2(motion) -> np.ndarray:
+    pos = motion.positions()
+    w = pos[:, [motion.skeleton.index("l_wrist"), motion.skeleton.index("r_wrist")]]  # (T, 2, 3)
+    return np.linalg.norm(np.diff(w, n=2, axis=0), axis=-1).max(axis=1) * motion.fps**2  # (T-2,)
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_wrist_accel_cap_lengthens_moves_but_keeps_the_strokes(speech_with_pause, seed):
+    kw = dict(fps=100.0, sway_rad=0.0, drift_m_s=0.0)
+    capped = RhythmGenerator(**kw, max_wrist_accel_m_s2=8.0)
+    free = RhythmGenerator(**kw, max_wrist_accel_m_s2=None)
+    assert wrist_accel_m_s2(free.generate(speech_with_pause, seed=seed)).max() > 12.0
+    assert wrist_accel_m_s2(capped.generate(speech_with_pause, seed=seed)).max() <= 8.0 * 1.05  # path curvature
+    assert len(capped.strokes(speech_with_pause, seed=seed)) >= 3
+
+
+def test_wrist_accel_cap_must_be_positive():
+    with pytest.raises(InputError, match="max_wrist_accel_m_s2 must be above 0"):
+        RhythmGenerator(max_wrist_accel_m_s2=0.0)
 
 
 def test_joint_limits_option_slows_every_move_to_what_the_body_can_do():
