@@ -11,8 +11,9 @@ read beside what real human motion reaches:
 2. the Hellinger distance of the held-out half's speech frames, as many at a time as a window of that length
    has, to the calibration half's histogram (:func:`bench_generalize.real_hellinger_floor`), and that half's
    speed and acceleration as ratios to the calibration half's;
-3. the capture played by each humanoid (retargeting alone, then retargeting + safety layer at 50 Hz, wrist
-   sites by forward kinematics) and its z as a share of the capture's.
+3. the capture's wrists relative to its shoulders (the trunk's motion taken out), and the capture played by
+   each humanoid (retargeting alone, then retargeting + safety layer at 50 Hz, wrist sites by forward
+   kinematics) with its z as a share of the capture's.
 
 Run: ``.venv/bin/python benchmarks/diag_real_floors.py`` (about 30 s).
 """
@@ -87,6 +88,11 @@ def main() -> int:
         print(f"    {length:4.0f} s of it at a time ({n} speech frames): mean H {bg.real_hellinger_floor(n, ref):.3f}")
 
     print("3. the motion capture on the robots: z kept (the benchmark asks at least 0.8 of the human z)")
+    for clip, part in halves:  # the arms' own share: what a robot with fixed shoulders could keep at best
+        p = part.positions()
+        sh = p[:, [part.skeleton.index("l_shoulder"), part.skeleton.index("r_shoulder")]]
+        rel = stroke_sync(_wrists(part) - sh, fps, clip.stressed_vowels_s, list(clip.speech.silent_spans))["z"]
+        print(f"  {clip.name}: the capture's wrists relative to its shoulders {rel:.2f}")
     for name in ROBOTS:
         robot = find_robot(name)
         for clip, part in halves:
