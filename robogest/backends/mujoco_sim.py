@@ -56,12 +56,13 @@ class SimModel:
 
 
 def load_sim_model(robot: RobotConfig) -> SimModel:
-    """Compile ``robot.model`` and check that every YAML joint is a hinge with a position actuator.
+    """Compile ``robot.model`` and check that every YAML joint is a hinge driven by one position servo.
 
     Raises
     ------
     ConfigError
-        The MJCF does not compile, or a joint/actuator named in the YAML is missing from it.
+        The MJCF does not compile, or does not do what the YAML commands
+        (:func:`~robogest.robot.validate.sim_mapping_problems`).
     """
     path = robot.model_path
     where = robot.path or robot.name
@@ -69,19 +70,22 @@ def load_sim_model(robot: RobotConfig) -> SimModel:
         model = mujoco.MjModel.from_xml_path(str(path))
     except ValueError as e:
         raise ConfigError(f"{where}: key model: MuJoCo cannot load {path}: {e}") from None
+    from robogest.robot.validate import joint_actuators, sim_mapping_problems
+
+    problems = sim_mapping_problems(robot, model)
+    if problems:  # the simulator would not do what the YAML commands: say what, on one line
+        more = f" (and {len(problems) - 2} more)" if len(problems) > 2 else ""
+        said = "; ".join(str(p).removeprefix(f"{where}: ") for p in problems[:2])
+        raise ConfigError(
+            f"{where}: the MuJoCo model does not match the robot YAML: {said}{more}; "
+            f"`robogest robots validate {where}` lists every problem"
+        )
     qpos_idx, dof_idx, act_idx = [], [], []
     for j in robot.joints:
         jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j.name)
-        if jid < 0:
-            raise ConfigError(f"{where}: joint {j.name!r} has no <joint> of that name in {path}")
-        if model.jnt_type[jid] != mujoco.mjtJoint.mjJNT_HINGE:
-            raise ConfigError(f"{where}: joint {j.name!r} is not a hinge joint in {path}")
-        acts = [a for a in range(model.nu) if model.actuator_trnid[a, 0] == jid]
-        if not acts:
-            raise ConfigError(f"{where}: joint {j.name!r} has no actuator in {path}; add a <position> actuator")
         qpos_idx.append(model.jnt_qposadr[jid])
         dof_idx.append(model.jnt_dofadr[jid])
-        act_idx.append(acts[0])
+        act_idx.append(joint_actuators(model, jid)[0])
     robot_geoms = model.body_rootid[model.geom_bodyid] != 0
     return SimModel(model, np.array(qpos_idx), np.array(dof_idx), np.array(act_idx), robot_geoms)
 

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Literal
+from types import UnionType
+from typing import Literal, Union, get_args, get_origin
 
 import numpy as np
 import yaml
@@ -28,8 +29,35 @@ HUMAN_POINTS = (
 JERK_RISE_S = 0.05
 
 
-#: Field types whose YAML value must be a plain number.
-_NUMBER_TYPES = (float, int, float | None, int | None)
+def _scalar_types(annotation: object) -> set[type]:
+    """The scalar types a field's annotation accepts (those of a ``Literal``'s values; through unions)."""
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin is Literal:
+        return {type(a) for a in args}
+    if origin in (Union, UnionType):
+        return set().union(*(_scalar_types(a) for a in args))
+    return {annotation} if isinstance(annotation, type) else set()
+
+
+def _mistyped(annotation: object, v: object) -> object | None:
+    """The value in ``v`` (or, for a tuple/list field, in its items) that lax pydantic would coerce into a
+    number although it is written as a boolean or as text: ``true`` reads as 1 (``direction: true`` would
+    silently mean "not reversed"), ``"3.0"`` as 3.0. None when there is none."""
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin in (tuple, list) and isinstance(v, (list, tuple)):
+        items = [a for a in args if a is not Ellipsis]
+        for k, item in enumerate(v):
+            bad = _mistyped(items[min(k, len(items) - 1)], item) if items else None
+            if bad is not None:
+                return bad
+        return None
+    types = _scalar_types(annotation)
+    numeric = bool(types & {int, float})
+    if isinstance(v, bool) and numeric and bool not in types:
+        return v
+    if isinstance(v, str) and numeric and str not in types:
+        return v
+    return None
 
 
 class _Strict(BaseModel):
@@ -40,10 +68,21 @@ class _Strict(BaseModel):
     @field_validator("*", mode="before")
     @classmethod
     def _numbers_are_numbers(cls, v: object, info: ValidationInfo) -> object:
-        # Lax pydantic reads `true` as 1.0 and "3.0" as 3.0: a quoted or boolean limit is a mistake, not a number.
-        if cls.model_fields[info.field_name].annotation in _NUMBER_TYPES and isinstance(v, (bool, str)):
-            raise ValueError(f"{v!r} is not a number; write the value unquoted (e.g. 3.0)")
-        return v
+        # Lax pydantic reads `true` as 1.0 and "3.0" as 3.0: a quoted or boolean number is a mistake, not a number.
+        bad = _mistyped(cls.model_fields[info.field_name].annotation, v)
+        if bad is None:
+            return v
+        if isinstance(bad, str) and _is_float_text(bad):  # YAML 1.1 reads 1e-6 (no dot) as text
+            raise ValueError(f"{bad!r} is read as text, not a number; write it with a decimal point (e.g. 1.0e-6)")
+        raise ValueError(f"{bad!r} is not a number; write the value unquoted (e.g. 3.0)")
+
+
+def _is_float_text(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return "e" in text.lower() and text.strip() == text
 
 
 class JointConfig(_Strict):
@@ -211,8 +250,10 @@ def load_robot_config(path: str | Path) -> RobotConfig:
         raw = load_yaml(path.read_text())
     except OSError as e:
         raise ConfigError(f"{path}: cannot read robot file ({e.strerror})") from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"{path}: not UTF-8 text (byte {e.start}); save it as UTF-8") from None
     except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: not valid YAML: {e}") from None
+        raise ConfigError(f"{path}: not valid YAML: {' '.join(str(e).split())}") from None
     except RecursionError:
         raise ConfigError(f"{path}: YAML nested too deeply to be a robot file") from None
     if not isinstance(raw, dict):

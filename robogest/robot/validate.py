@@ -147,7 +147,25 @@ def _servo_problems(robot: RobotConfig, yml: Path) -> list[Problem]:
     return out
 
 
-def _joint_problems(robot: RobotConfig, m, yml: Path, mjcf: Path) -> list[Problem]:
+def joint_actuators(m, jid: int) -> list[int]:
+    """Actuators of MuJoCo model ``m`` that drive joint ``jid`` directly (joint transmission)."""
+    import mujoco
+
+    return [
+        a for a in range(m.nu) if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and m.actuator_trnid[a, 0] == jid
+    ]
+
+
+def sim_mapping_problems(robot: RobotConfig, m) -> list[Problem]:
+    """What would make the simulator not do what the YAML commands: a YAML joint missing from model ``m`` or not
+    a hinge, YAML limits past the joint's range, and a joint not driven by exactly one position servo (gear 1)
+    whose ctrlrange covers the YAML limits. The simulator refuses to run such a model."""
+    return _joint_problems(robot, m, robot.path or Path(f"{robot.name}.yaml"), robot.model_path, mapping_only=True)
+
+
+def _joint_problems(robot: RobotConfig, m, yml: Path, mjcf: Path, mapping_only: bool = False) -> list[Problem]:
+    """Every YAML joint against the model; ``mapping_only`` leaves out what only makes the simulation less
+    faithful (no range on the MJCF joint, no damping, no force limit, actuators for other joints)."""
     import mujoco
 
     out = []
@@ -162,7 +180,7 @@ def _joint_problems(robot: RobotConfig, m, yml: Path, mjcf: Path) -> list[Proble
             out.append(Problem(mjcf, f'<joint name="{j.name}">', "not a hinge joint", "robogest drives hinges only"))
             continue
         lo, hi = m.jnt_range[jid] if m.jnt_limited[jid] else (-np.inf, np.inf)
-        if not m.jnt_limited[jid]:
+        if not m.jnt_limited[jid] and not mapping_only:
             out.append(
                 Problem(
                     mjcf,
@@ -190,7 +208,7 @@ def _joint_problems(robot: RobotConfig, m, yml: Path, mjcf: Path) -> list[Proble
                 )
             )
         dof = m.jnt_dofadr[jid]
-        if m.dof_damping[dof] <= 0 or m.dof_armature[dof] <= 0:
+        if (m.dof_damping[dof] <= 0 or m.dof_armature[dof] <= 0) and not mapping_only:
             out.append(
                 Problem(
                     mjcf,
@@ -200,7 +218,7 @@ def _joint_problems(robot: RobotConfig, m, yml: Path, mjcf: Path) -> list[Proble
                     'set e.g. damping="0.6" armature="0.006" (STS3215-sized servo)',
                 )
             )
-        acts = [a for a in range(m.nu) if m.actuator_trnid[a, 0] == jid and m.actuator_trntype[a] == 0]
+        acts = joint_actuators(m, jid)
         driven.update(acts)
         where = f'<actuator> for joint "{j.name}"'
         if len(acts) != 1:
@@ -225,6 +243,16 @@ def _joint_problems(robot: RobotConfig, m, yml: Path, mjcf: Path) -> list[Proble
                     "use a <position> actuator with kp > 0",
                 )
             )
+        gear = float(m.actuator_gear[a, 0])
+        if abs(gear - 1.0) > _TOL:
+            out.append(
+                Problem(
+                    mjcf,
+                    where,
+                    f"gear {gear:g}: the joint would settle at ctrl / {gear:g}, not where the YAML commands it",
+                    "remove gear (1 is the default): joint angles are commanded directly",
+                )
+            )
         clo, chi = m.actuator_ctrlrange[a] if m.actuator_ctrllimited[a] else (-np.inf, np.inf)
         if not m.actuator_ctrllimited[a] or clo > j.lower_rad + _TOL or chi < j.upper_rad - _TOL:
             out.append(
@@ -244,7 +272,7 @@ def _joint_problems(robot: RobotConfig, m, yml: Path, mjcf: Path) -> list[Proble
                     'set inheritrange="1"',
                 )
             )
-        if not m.actuator_forcelimited[a]:
+        if not m.actuator_forcelimited[a] and not mapping_only:
             out.append(
                 Problem(
                     mjcf,
@@ -254,7 +282,7 @@ def _joint_problems(robot: RobotConfig, m, yml: Path, mjcf: Path) -> list[Proble
                 )
             )
     extra = [m.actuator(a).name or str(a) for a in range(m.nu) if a not in driven]
-    if extra:
+    if extra and not mapping_only:
         out.append(
             Problem(
                 mjcf,
@@ -391,7 +419,6 @@ def _load_problems(name_or_path: str | Path, message: str) -> list[Problem]:
     A joint-name typo also breaks the ``bus.servos`` cross-check, whose message names the wrong culprit; the MJCF
     knows the real joint names, so the typo itself is reported first.
     """
-    lines = message.splitlines()
     path = Path(str(name_or_path))
     out: list[Problem] = []
     try:
@@ -408,10 +435,13 @@ def _load_problems(name_or_path: str | Path, message: str) -> list[Problem]:
                     out.append(_not_in_model(path, f"joints[{k}].name", n, "joint", names, model))
     except Exception:  # the load error below already says what is wrong; this is only a better hint
         pass
-    # the loader's messages already say how to fix things: "PATH: key K: message" or "PATH: invalid robot
-    # definition:" followed by "  key K: message" lines
-    for line in lines[1:] if len(lines) > 1 else [lines[0].removeprefix(f"{path}: ")]:
-        text = line.strip()
+    # the loader's messages already say how to fix things, on one line: "PATH: key K: message" or "PATH: invalid
+    # robot definition: key K: message; key K2: message2"
+    flat = " ".join(message.split()).removeprefix(f"{path}: ")
+    head, sep, rest = flat.partition("invalid robot definition: ")
+    parts = rest.split("; key ") if sep and not head else [flat]
+    for k, part in enumerate(parts):
+        text = part if k == 0 else "key " + part
         key, _, msg = text.removeprefix("key ").partition(": ") if text.startswith("key ") else ("(file)", "", text)
         out.append(Problem(path, key, msg, ""))
     return out

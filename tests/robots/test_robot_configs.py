@@ -160,10 +160,17 @@ def test_valid_copy_loads(tmp_path):
          r"key joints\[0\]\.max_velocity_rad_s: True is not a number; write the value unquoted"),
         (lambda r: r["joints"][2].update(upper_rad="1.5"), r"key joints\[2\]\.upper_rad: '1\.5' is not a number"),
         (lambda r: r["bus"]["servos"]["l_elbow"].update(id=True), r"key bus\.servos\.l_elbow\.id: True is not a"),
+        # `direction: true` read as 1 would silently leave a servo meant to be reversed unreversed
+        (lambda r: r["bus"]["servos"]["r_elbow"].update(direction=True),
+         r"key bus\.servos\.r_elbow\.direction: True is not a number"),
+        (lambda r: r.update(retarget_frame_rpy_rad=[True, 0.0, 0.0]), r"key retarget_frame_rpy_rad: True is not a"),
+        (lambda r: r["joints"][0].update(max_velocity_rad_s="2e0"),
+         r"key joints\[0\]\.max_velocity_rad_s: '2e0' is read as text.*decimal point \(e\.g\. 1\.0e-6\)"),
     ],
     ids=["unknown-key", "unknown-joint-key", "lower>upper", "missing-model", "duplicate-id", "bus-missing-joint",
          "bad-human-point", "nan-zero-offset", "inf-gear-ratio", "zero-gear-ratio", "nan-limit", "inf-velocity",
-         "inf-rest", "inf-weight", "nan-frame-rpy", "bool-velocity", "quoted-limit", "bool-id"],
+         "inf-rest", "inf-weight", "nan-frame-rpy", "bool-velocity", "quoted-limit", "bool-id", "bool-direction",
+         "bool-in-tuple", "exponent-text"],
 )  # fmt: skip
 def test_broken_yaml_names_file_and_key(tmp_path, mutate, pattern):
     path = _write_variant(tmp_path, mutate)
@@ -197,6 +204,24 @@ def test_a_key_given_twice_is_refused_not_overwritten(tmp_path, old, new, patter
     assert str(path) in str(exc.value)
 
 
+def test_exponent_without_a_dot_is_text_in_yaml_and_the_message_says_so(tmp_path):
+    src = list_robots()["humanoid_xl430"]
+    text = src.read_text().replace("../sim/", str(src.parent.parent / "sim") + "/")
+    path = tmp_path / "exp.yaml"
+    path.write_text(text.replace("max_velocity_rad_s: 2.5,", "max_velocity_rad_s: 25e-1,", 1))
+    with pytest.raises(ConfigError, match=r"max_velocity_rad_s: '25e-1' is read as text.*decimal point"):
+        load_robot_config(path)
+    path.write_text(text.replace("max_velocity_rad_s: 2.5,", "max_velocity_rad_s: 25.0e-1,", 1))
+    assert load_robot_config(path).joints[0].max_velocity_rad_s == 2.5
+
+
+def test_not_utf8_is_config_error(tmp_path):
+    bad = tmp_path / "latin.yaml"
+    bad.write_bytes("name: caf\xe9\n".encode("latin-1"))
+    with pytest.raises(ConfigError, match=r"latin\.yaml: not UTF-8 text.*save it as UTF-8"):
+        load_robot_config(bad)
+
+
 def test_not_yaml_and_missing_file(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("name: [unclosed")
@@ -214,7 +239,8 @@ def test_yaml_joint_missing_in_mjcf_is_config_error(tmp_path):
         raw["bus"]["servos"]["waist_yaw"] = raw["bus"]["servos"].pop("torso_yaw")
 
     path = _write_variant(tmp_path, rename)
-    with pytest.raises(ConfigError, match=r"broken\.yaml: joint 'waist_yaw' has no <joint>"):
+    pattern = r"broken\.yaml: the MuJoCo model does not match the robot YAML: key joints\[0\]\.name: 'waist_yaw' is"
+    with pytest.raises(ConfigError, match=pattern):
         load_sim_model(load_robot_config(path))
 
 

@@ -104,6 +104,68 @@ def test_mjcf_mistakes_found(tmp_path, mutate, pattern):
     assert any(re.search(pattern, p) for p in problems), problems
 
 
+_ELBOW = '<position name="elbow" joint="elbow" class="sts3215"/>'
+
+
+@pytest.mark.parametrize(
+    ("mutate", "pattern"),
+    [
+        (lambda t: t.replace(_ELBOW, '<position name="elbow" joint="elbow" class="sts3215" gear="2"/>'),
+         r'key <actuator> for joint "elbow": gear 2: the joint would settle at ctrl / 2'),
+        (lambda t: t.replace(_ELBOW, '<motor name="elbow" joint="elbow" gear="1" ctrlrange="-1 1"/>'),
+         r'key <actuator> for joint "elbow": not a position servo'),
+        (lambda t: t.replace(_ELBOW, _ELBOW + '<motor name="elbow_m" joint="elbow" ctrlrange="-1 1"/>'),
+         r'key <actuator> for joint "elbow": 2 actuators drive this joint'),
+        (lambda t: t.replace(_ELBOW, '<position name="elbow" joint="elbow" class="sts3215" inheritrange="0" '
+                                     'ctrlrange="-0.2 0.2"/>'),
+         r'key <actuator> for joint "elbow": ctrlrange \[-0\.2, 0\.2\] does not cover the YAML limits'),
+    ],
+    ids=["gear-2", "motor-not-position", "two-actuators", "narrow-ctrlrange"],
+)  # fmt: skip
+def test_the_simulator_refuses_a_model_that_would_not_do_what_the_yaml_commands(tmp_path, mutate, pattern):
+    """``robots validate`` lists it, and ``speak``/``play`` on the sim refuse the robot with the same problem, on
+    one line (they used to drive the first actuator found, of any kind, or let a geared one reach half the goal)."""
+    from robogest.backends.mujoco_sim import load_sim_model
+    from robogest.errors import ConfigError
+    from robogest.robot.config import load_robot_config
+
+    path = _desk_arm_copy(tmp_path, mutate_xml=mutate)
+    assert any(re.search(pattern, p) for p in _problems(path)), _problems(path)
+    with pytest.raises(ConfigError, match=r"arm\.yaml: the MuJoCo model does not match the robot YAML: .*" + pattern):
+        load_sim_model(load_robot_config(path))
+
+
+def test_a_tendon_actuator_is_not_taken_for_a_joint_one(tmp_path):
+    """A tendon transmission's id counts tendons, not joints: tendon 0 must not be read as joint 0."""
+    from robogest.backends.mujoco_sim import load_sim_model
+    from robogest.robot.config import load_robot_config
+
+    def tendon_first(t: str) -> str:
+        t = t.replace("<actuator>", '<tendon><fixed name="t0"><joint joint="elbow" coef="1"/></fixed></tendon>'
+                                    '<actuator><motor name="tmot" tendon="t0" ctrlrange="-1 1"/>', 1)  # fmt: skip
+        return t
+
+    path = _desk_arm_copy(tmp_path, mutate_xml=tendon_first)
+    sim = load_sim_model(load_robot_config(path))
+    m = sim.model
+    assert [m.actuator(int(a)).name for a in sim.act_idx] == ["base_yaw", "shoulder_pitch", "elbow", "wrist_pitch",
+                                                              "wrist_roll"]  # fmt: skip
+
+
+def test_load_problems_of_a_file_that_does_not_load_are_listed_one_per_key(tmp_path):
+    def two(raw):
+        raw["joints"][0]["max_velocity_rad_s"] = True
+        raw["joints"][1]["upper_rad"] = "1.5"
+
+    problems = _problems(_desk_arm_copy(tmp_path, mutate_yaml=two))
+    assert any(re.search(r"key joints\[0\]\.max_velocity_rad_s: True is not a number", p) for p in problems)
+    assert any(re.search(r"key joints\[1\]\.upper_rad: '1\.5' is not a number", p) for p in problems)
+    bad = tmp_path / "syntax.yaml"
+    bad.write_text("name: [unclosed\n  a: b\n")
+    (p,) = _problems(bad)
+    assert "not valid YAML: while parsing a flow sequence" in p and "\n" not in p
+
+
 def test_cli_valid_and_invalid(tmp_path, capsys):
     assert main(["robots", "validate", "desk_arm_sts3215"]) == 0
     assert "desk_arm_sts3215: valid" in capsys.readouterr().out
