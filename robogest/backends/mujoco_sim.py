@@ -69,7 +69,7 @@ def load_sim_model(robot: RobotConfig) -> SimModel:
     try:
         model = mujoco.MjModel.from_xml_path(str(path))
     except ValueError as e:
-        raise ConfigError(f"{where}: key model: MuJoCo cannot load {path}: {e}") from None
+        raise ConfigError(f"{where}: key model: MuJoCo cannot load {path}: {' '.join(str(e).split())}") from None
     from robogest.robot.validate import joint_actuators, sim_mapping_problems
 
     problems = sim_mapping_problems(robot, model)

@@ -27,6 +27,12 @@ HUMAN_POINTS = (
 
 #: Default jerk limit rule: the acceleration limit is reached from zero in this many seconds.
 JERK_RISE_S = 0.05
+#: Limits a servo joint can plausibly have (the fastest hobby servos turn at about 10 rad/s). Outside them a value
+#: is a unit mistake, and the safety layer's time bounds, sized from the limits, would be absurd (1e-6 rad/s²
+#: asked for more memory than the machine has; 1e308 rad/s overflowed).
+PLAUSIBLE_VELOCITY_RAD_S = (0.01, 100.0)
+PLAUSIBLE_ACCELERATION_RAD_S2 = (0.05, 1e4)
+PLAUSIBLE_JERK_RAD_S3 = (0.5, 1e7)
 
 
 def _scalar_types(annotation: object) -> set[type]:
@@ -108,6 +114,16 @@ class JointConfig(_Strict):
 
     @model_validator(mode="after")
     def _check(self) -> JointConfig:
+        for key, (lo, hi), unit in (
+            ("max_velocity_rad_s", PLAUSIBLE_VELOCITY_RAD_S, "rad/s"),
+            ("max_acceleration_rad_s2", PLAUSIBLE_ACCELERATION_RAD_S2, "rad/s²"),
+            ("max_jerk_rad_s3", PLAUSIBLE_JERK_RAD_S3, "rad/s³"),
+        ):
+            v = getattr(self, key)
+            if v is not None and not lo <= v <= hi:
+                raise ValueError(
+                    f"{key} = {v:g} {unit} is outside [{lo:g}, {hi:g}], what a servo joint can have; check the units"
+                )
         if not self.lower_rad < self.upper_rad:
             raise ValueError(f"lower_rad ({self.lower_rad}) must be below upper_rad ({self.upper_rad})")
         if not self.lower_rad <= self.rest_rad <= self.upper_rad:

@@ -166,6 +166,17 @@ def import_lerobot_calibration(
         )
     if unused:
         changes.append(f"motors in the file but not in the robot, ignored: {sorted(unused)}")
+    ids: dict[int, list[str]] = {}
+    for joint, entry in raw["bus"]["servos"].items():
+        ids.setdefault(int(entry["id"]), []).append(joint)
+    shared = {i: js for i, js in ids.items() if len(js) > 1}
+    if shared:
+        motors = {j: m for m, j in used.items()}
+        said = "; ".join(f"id {i}: " + ", ".join(f"{j} (motor {motors.get(j, 'none, kept')!r})" for j in js)
+                         for i, js in sorted(shared.items()))  # fmt: skip
+        raise InputError(
+            f"{calib_path}: two servos would share one id ({said}); give each motor its own id; nothing written"
+        )
     raw["name"] = out.stem
     raw["description"] = f"{robot.description} (calibrated from {Path(calib_path).name})".strip()
     rel = os.path.relpath(robot.model_path, out.resolve().parent)
@@ -178,5 +189,11 @@ def import_lerobot_calibration(
     )
     with atomic_path(out, suffix=".yaml") as tmp:  # only a copy that loads replaces anything
         tmp.write_text(header + yaml.safe_dump(raw, sort_keys=False, default_flow_style=None, width=120))
-        load_robot_config(tmp)
+        try:
+            load_robot_config(tmp)
+        except ConfigError as e:  # name the copy it would have been, not the temporary file
+            raise ConfigError(
+                f"{calib_path}: the calibrated copy would not load: {str(e).replace(str(tmp), str(out))}; "
+                "nothing written"
+            ) from None
     return CalibrationImport(out, changes)

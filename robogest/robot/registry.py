@@ -1,6 +1,6 @@
 """Find robot YAMLs by name along a documented search path.
 
-Search order (the first folder holding ``NAME.yaml`` wins on a name clash):
+Search order (the first folder holding ``NAME.yaml`` or ``NAME.yml`` wins on a name clash):
 
 1. ``--robot PATH.yaml``: a path is loaded as is, no search;
 2. ``$ROBOGEST_ROBOTS``: one or more folders (``os.pathsep``-separated), in the order given;
@@ -46,7 +46,10 @@ def list_robots() -> dict[str, Path]:
     """Robot name -> YAML path, earlier folders winning."""
     found: dict[str, Path] = {}
     for d in search_path():
-        for f in sorted(d.glob("*.yaml")) if d.is_dir() else []:
+        if not d.is_dir():
+            continue
+        # .yaml before .yml of the same name in one folder; --robot PATH takes either
+        for f in sorted([*d.glob("*.yaml"), *d.glob("*.yml")], key=lambda f: (f.stem, f.suffix != ".yaml")):
             found.setdefault(f.stem, f)
     return found
 

@@ -17,6 +17,8 @@ installation is needed.
 
 from __future__ import annotations
 
+import csv
+import io
 import tempfile
 from pathlib import Path
 
@@ -66,7 +68,9 @@ def export_trajectory(traj: Trajectory, path: str | Path) -> Path:
 
 def write_csv(traj: Trajectory, path: Path) -> None:
     """One row per command frame: ``t_s``, ``silent`` (0/1), then each joint's position as ``<joint>_rad``."""
-    header = ",".join(["t_s", "silent", *(f"{name}_rad" for name in traj.joint_names)])
+    buf = io.StringIO()  # csv quotes a joint name holding a comma or a quote
+    csv.writer(buf, lineterminator="").writerow(["t_s", "silent", *(f"{name}_rad" for name in traj.joint_names)])
+    header = buf.getvalue()
     table = np.column_stack([traj.t_s, traj.silent.astype(float), traj.q_rad])
     fmt = ["%.6f", "%d", *(["%.9f"] * traj.q_rad.shape[1])]
     with atomic_path(path, ".csv") as tmp:

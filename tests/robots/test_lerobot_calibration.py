@@ -123,9 +123,27 @@ def test_one_motor_for_two_joints_is_refused_and_a_good_copy_is_kept(tmp_path, s
         import_lerobot_calibration(_write(tmp_path, calib), so101_copy, overwrite=True)
     assert good.read_text() == before
     twice = {**CALIB, "shoulder_pan": {**CALIB["shoulder_pan"], "id": 2}}  # both joints' servos on id 2
-    with pytest.raises(ConfigError, match=r"servo ids \[2\]"):
+    with pytest.raises(
+        InputError,
+        match=r"follower\.json: two servos would share one id \(id 2: shoulder_pan "
+        r"\(motor 'shoulder_pan'\), shoulder_lift \(motor 'shoulder_lift'\)\)",
+    ):
         import_lerobot_calibration(_write(tmp_path, twice), so101_copy, overwrite=True)
     assert good.read_text() == before  # a copy that does not load replaces nothing
+
+
+def test_a_copy_that_would_not_load_is_named_as_the_copy_not_a_temporary_file(tmp_path, so101_copy, monkeypatch):
+    import robogest.robot.lerobot_calibration as lc
+
+    def refuse(path):
+        raise ConfigError(f"{path}: key joints[0]: made up")
+
+    monkeypatch.setattr(lc, "load_robot_config", refuse)
+    out = tmp_path / "copy.yaml"
+    with pytest.raises(ConfigError, match=r"follower\.json: the calibrated copy would not load: .*copy\.yaml: key "
+                                          r"joints\[0\]: made up; nothing written") as e:  # fmt: skip
+        import_lerobot_calibration(_write(tmp_path, CALIB), so101_copy, out=out)
+    assert ".tmp" not in str(e.value) and not out.exists()
 
 
 def test_never_over_the_original(tmp_path, so101_copy):

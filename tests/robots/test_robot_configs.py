@@ -166,11 +166,16 @@ def test_valid_copy_loads(tmp_path):
         (lambda r: r.update(retarget_frame_rpy_rad=[True, 0.0, 0.0]), r"key retarget_frame_rpy_rad: True is not a"),
         (lambda r: r["joints"][0].update(max_velocity_rad_s="2e0"),
          r"key joints\[0\]\.max_velocity_rad_s: '2e0' is read as text.*decimal point \(e\.g\. 1\.0e-6\)"),
+        (lambda r: r["joints"][0].update(max_velocity_rad_s=1.0e9),
+         r"key joints\[0\]: .*max_velocity_rad_s = 1e\+09 rad/s is outside \[0\.01, 100\].*check the units"),
+        (lambda r: r["joints"][1].update(max_acceleration_rad_s2=1.0e-6),
+         r"key joints\[1\]: .*max_acceleration_rad_s2 = 1e-06 rad/s² is outside \[0\.05, 10000\]"),
+        (lambda r: r["joints"][2].update(max_jerk_rad_s3=1.0e308), r"key joints\[2\]: .*max_jerk_rad_s3 = 1e\+308"),
     ],
     ids=["unknown-key", "unknown-joint-key", "lower>upper", "missing-model", "duplicate-id", "bus-missing-joint",
          "bad-human-point", "nan-zero-offset", "inf-gear-ratio", "zero-gear-ratio", "nan-limit", "inf-velocity",
          "inf-rest", "inf-weight", "nan-frame-rpy", "bool-velocity", "quoted-limit", "bool-id", "bool-direction",
-         "bool-in-tuple", "exponent-text"],
+         "bool-in-tuple", "exponent-text", "huge-velocity", "tiny-acceleration", "huge-jerk"],
 )  # fmt: skip
 def test_broken_yaml_names_file_and_key(tmp_path, mutate, pattern):
     path = _write_variant(tmp_path, mutate)

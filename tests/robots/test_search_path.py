@@ -53,3 +53,12 @@ def test_unknown_robot_names_the_folders_searched(tmp_path, monkeypatch):
     monkeypatch.setenv("ROBOGEST_ROBOTS", str(tmp_path / "mine"))
     with pytest.raises(ConfigError, match=r"unknown robot 'nobot'.*searched .*mine, .*robots"):
         find_robot("nobot")
+
+
+def test_a_yml_robot_is_found_by_name_and_yaml_wins_a_tie(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("ROBOGEST_ROBOTS", str(tmp_path / "mine"))
+    _copy_as(tmp_path / "mine", "short suffix", name="ymlbot").rename(tmp_path / "mine" / "ymlbot.yml")
+    assert "ymlbot" in list_robots() and find_robot("ymlbot").description == "short suffix"
+    _copy_as(tmp_path / "mine", "long suffix", name="ymlbot")
+    assert find_robot("ymlbot").description == "long suffix"

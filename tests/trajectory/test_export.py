@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 
 import numpy as np
@@ -72,6 +73,16 @@ def test_csv_round_trip(tmp_path):
     np.testing.assert_allclose(table[:, 0], traj.t_s, atol=1e-6)
     np.testing.assert_array_equal(table[:, 1].astype(bool), traj.silent)
     np.testing.assert_allclose(table[:, 2:], traj.q_rad, atol=1e-9)
+
+
+def test_csv_header_quotes_a_joint_name_with_a_comma(tmp_path):
+    import csv
+
+    traj = dataclasses.replace(_traj(), joint_names=["a,b", 'say "hi"', "c"])
+    path = export_trajectory(traj, tmp_path / "t.csv")
+    rows = list(csv.reader(path.read_text().splitlines()))
+    assert rows[0] == ["t_s", "silent", "a,b_rad", 'say "hi"_rad', "c_rad"]
+    assert {len(r) for r in rows} == {5}
 
 
 def test_existing_bag_folder_is_never_overwritten(tmp_path):
