@@ -181,21 +181,24 @@ def _progress(enabled: bool):
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     return Progress(
-        TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("loss {task.fields[loss]}"),
-        TimeRemainingColumn(), transient=True,
+        TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
+        TextColumn("loss {task.fields[loss]}"), TimeRemainingColumn(), transient=True,
     )  # fmt: skip
 
 
 def _batches(n: int, batch: int, generator, info: D.DistInfo) -> list[np.ndarray]:
-    """Shuffled index batches of the global size; each rank keeps its strided share of every batch."""
+    """Shuffled index batches of the global size; each rank keeps its strided share of every batch.
+
+    A last batch with fewer windows than ranks is dropped on every rank: every rank must take the same number of
+    steps, or the next collective (DDP's gradient all-reduce) waits for a rank that has none and the job aborts.
+    """
     torch = require_torch()
     perm = torch.randperm(n, generator=generator).numpy()
-    out = []
-    for s in range(0, n, batch):
-        b = perm[s : s + batch][info.rank :: info.world_size]
-        if b.size:
-            out.append(b)
-    return out
+    return [
+        perm[s : s + batch][info.rank :: info.world_size]
+        for s in range(0, n, batch)
+        if perm[s : s + batch].size >= info.world_size
+    ]
 
 
 def train(cfg: TrainConfig, spec: ModelSpec, log: Callable[[str], None] | None = None) -> Path:
@@ -232,7 +235,17 @@ def train(cfg: TrainConfig, spec: ModelSpec, log: Callable[[str], None] | None =
 def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, torch) -> Path:
     if cfg.epochs < 1 or cfg.batch_size < 1 or (cfg.lr is not None and not cfg.lr > 0):
         raise InputError("epochs and batch size must be >= 1 and lr > 0")
+    if cfg.batch_size < info.world_size:
+        raise InputError(
+            f"--batch-size {cfg.batch_size} is smaller than the {info.world_size} processes: each needs a window "
+            "per step; use a batch size of at least the number of processes"
+        )
     out = Path(cfg.out)
+    if not cfg.resume and (out / "last.pt").is_file():
+        raise InputError(
+            f"{out} already holds a training run (last.pt): pass --resume to continue it, or choose a new --out "
+            "(nothing was overwritten)"
+        )
     seed_everything(cfg.seed)
     fcfg = FeatureConfig(text_encoder=cfg.text_encoder, text_encoder_kwargs=dict(cfg.text_encoder_kwargs))
     t0 = time.perf_counter()
@@ -252,7 +265,24 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         resume_ckpt = load_checkpoint(out / "last.pt", map_location="cpu")
         if resume_ckpt["model_name"] != cfg.model or resume_ckpt["feature_config"] != fcfg.to_dict():
             raise InputError(f"{out / 'last.pt'}: written for another model or feature set-up; use a new --out")
+        ts = resume_ckpt.get("train_state")
+        if not isinstance(ts, dict) or not {"next_epoch", "history", "best_val", "rng_cpu"} <= set(ts):
+            raise InputError(f"{out / 'last.pt'}: holds no training state to resume from; use a new --out")
+        was = (ts.get("train_config") or {}).get("lr")
+        if cfg.lr is not None and was is not None and float(was) != cfg.lr:
+            raise InputError(
+                f"--resume continues {out / 'last.pt'}, trained with --lr {was}; --lr {cfg.lr} would not apply to "
+                "its optimiser state: drop --lr, or train into a new --out"
+            )
         mcfg = spec.config_from_dict(resume_ckpt["model_config"])
+        wanted = spec.make_config(n_acoustic, n_text, n_pose, dict(cfg.model_overrides))  # refuses unknown keys
+        changed = sorted(k for k in dict(cfg.model_overrides) if getattr(wanted, k) != getattr(mcfg, k))
+        if changed:
+            was = ", ".join(f"{k}={getattr(mcfg, k)!r}" for k in changed)
+            raise InputError(
+                f"--resume continues {out / 'last.pt'}, trained with {was}; --set cannot change a model being "
+                "resumed: drop those --set options, or train into a new --out"
+            )
         norm = Normalization.from_dict({k: v.numpy() for k, v in resume_ckpt["normalization"].items()})
     else:
         mcfg = spec.make_config(n_acoustic, n_text, n_pose, dict(cfg.model_overrides))
@@ -287,6 +317,8 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
             o.load_state_dict(saved[name])
         start, history, best = int(ts["next_epoch"]), list(ts["history"]), float(ts["best_val"])
         torch.set_rng_state(ts["rng_cpu"])
+        if ts.get("rng_cuda") is not None and torch.cuda.is_available():
+            torch.cuda.set_rng_state_all(ts["rng_cuda"])  # dropout masks on the GPU continue as uninterrupted
         say(f"resumed from {out / 'last.pt'} at epoch {start}")
     net = model
     if info.enabled and custom_step:
@@ -310,6 +342,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
             "history": history,
             "best_val": best,
             "rng_cpu": torch.get_rng_state(),
+            "rng_cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None,
             "train_config": json.loads(json.dumps(dataclasses.asdict(cfg), default=str)),
         }
         state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
@@ -369,7 +402,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
             if improved or not best_path.is_file():
                 save_checkpoint(ckpt, best_path)
             with atomic_path(out / "history.json") as tmp:
-                tmp.write_text(json.dumps(history, indent=1), encoding="utf-8")
+                tmp.write_text(json.dumps(_json_safe(history), indent=1), encoding="utf-8")
         say(
             f"{what}  train {train_loss:.4f}  val {val:.4f}  "
             f"{history[-1]['seconds']:.1f} s{'  *best' if improved else ''}"
@@ -377,6 +410,18 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
     if bar:
         bar.stop()
     return best_path
+
+
+def _json_safe(obj: Any) -> Any:
+    """``obj`` with every NaN or infinite float as None (null): JSON has no NaN, and other readers refuse it (a run
+    with no validation window has ``val_loss`` NaN)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_json_safe(v) for v in obj]
+    return obj
 
 
 def _windows(spec, mcfg, train_takes, val_takes, norm, seq, stride, v_len, out: Path, info: D.DistInfo):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import socket
@@ -133,6 +134,39 @@ def test_resume_continues_and_is_deterministic(fixture_data, tmp_path):
     sa, sb = load_checkpoint(tmp_path / "a" / "last.pt"), load_checkpoint(tmp_path / "b" / "last.pt")
     for k, v in sa["model_state"].items():
         torch.testing.assert_close(v, sb["model_state"][k])
+
+    # what a resume cannot honour is refused, not recorded as if applied; a run is never trained over
+    from robogest.errors import InputError
+
+    before = (tmp_path / "a" / "best.pt").read_bytes()
+    with pytest.raises(InputError, match=r"a already holds a training run \(last\.pt\): pass --resume"):
+        train_model(cfg(tmp_path / "a", 1), log=lambda s: None)
+    with pytest.raises(InputError, match=r"trained with --lr 0\.001; --lr 0\.005 would not apply"):
+        train_model(dataclasses.replace(cfg(tmp_path / "a", 4, resume=True), lr=5e-3), log=lambda s: None)
+    wider = dataclasses.replace(cfg(tmp_path / "a", 4, resume=True), model_overrides={**SMALL_MODEL, "frame_dim": 64})
+    with pytest.raises(InputError, match=r"trained with frame_dim=32; --set cannot change a model being resumed"):
+        train_model(wider, log=lambda s: None)
+    assert (tmp_path / "a" / "best.pt").read_bytes() == before
+
+
+def test_every_rank_takes_the_same_number_of_steps():
+    """A last batch with fewer windows than ranks left one rank without a step: DDP's all-reduce then aborted."""
+    from robogest.learn.dist import DistInfo
+    from robogest.learn.trainer import _batches
+
+    for n, batch, world in ((22, 21, 2), (10, 4, 4), (7, 7, 1), (9, 4, 3)):
+        shares = [_batches(n, batch, torch.Generator().manual_seed(0), DistInfo(r, world)) for r in range(world)]
+        assert len({len(s) for s in shares}) == 1 and all(b.size for s in shares for b in s), (n, batch, world)
+        taken = np.concatenate([b for s in shares for b in s])
+        assert len(set(taken.tolist())) == taken.size  # no window twice in an epoch
+
+
+def test_history_is_strict_json():
+    from robogest.learn.trainer import _json_safe
+
+    out = json.dumps(_json_safe([{"epoch": 1, "val_loss": float("nan"), "parts": {"x": float("inf")}}]))
+    assert json.loads(out, parse_constant=lambda c: pytest.fail(c)) == [{"epoch": 1, "val_loss": None,
+                                                                         "parts": {"x": None}}]  # fmt: skip
 
 
 def _free_port() -> int:
