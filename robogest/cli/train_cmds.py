@@ -27,7 +27,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--epochs", type=checks.positive_int(100_000), default=20, help="total epochs (default: %(default)s)"
     )
-    p.add_argument("--resume", action="store_true", help="continue from OUT/last.pt (without it, an OUT that holds a run is refused)")
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue from OUT/last.pt (without it, an OUT that holds a run is refused)",
+    )
     p.add_argument("--seed", type=checks.seed, default=0, help="random seed (default: %(default)s)")
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto", help="default: %(default)s")
     p.add_argument(

@@ -99,6 +99,9 @@ def load_checkpoint(path: str | os.PathLike, map_location: str = "cpu") -> dict[
         raise InputError(f"{path}: not a robogest checkpoint (no format={FORMAT!r} field)")
     if ckpt.get("version", 0) > VERSION:
         raise InputError(f"{path}: checkpoint version {ckpt['version']} is newer than this robogest ({VERSION})")
+    for key, kind in (("model_name", str), ("model_config", dict), ("feature_config", dict), ("normalization", dict)):
+        if not isinstance(ckpt.get(key), kind):
+            raise InputError(f"{path}: not a complete robogest checkpoint ({key!r} missing or not a {kind.__name__})")
     return ckpt
 
 

@@ -9,6 +9,8 @@ import os
 from pathlib import Path
 from typing import Any, ClassVar
 
+import numpy as np
+
 from robogest.data.features import FeatureConfig, text_encoder_for
 from robogest.data.prep import Normalization
 from robogest.errors import InputError
@@ -49,11 +51,23 @@ class CheckpointGenerator(Generator):
         ckpt = load_checkpoint(checkpoint, map_location=device)
         if ckpt["model_name"] != self.name:
             raise InputError(f"{checkpoint}: a {ckpt['model_name']!r} checkpoint, not a {self.name} one")
-        config = self.config_cls.from_dict(ckpt["model_config"])
+        try:  # a file from another robogest version, or edited: one line naming the file and the part
+            what = "model config"
+            config = self.config_cls.from_dict(ckpt["model_config"])
+            what = "feature config"
+            features = FeatureConfig.from_dict(ckpt["feature_config"])
+            what = "normalisation"
+            norm = Normalization.from_dict(normalization_arrays(ckpt))
+        except (TypeError, ValueError, KeyError, AttributeError) as e:
+            raise InputError(f"{checkpoint}: invalid {what} ({type(e).__name__}: {e})") from None
+        n_pose = getattr(config, "n_pose", None)  # S2AG works in its own pose space
+        sizes = {"pose_mean": n_pose, "pose_std": n_pose} if n_pose is not None else {}
+        bad = [k for k, n in sizes.items() if np.shape(getattr(norm, k)) != (n,)]
+        if bad:
+            raise InputError(f"{checkpoint}: invalid normalisation ({bad[0]} is not {sizes[bad[0]]} values)")
         model = build_model(ckpt, lambda: self.net_cls(config), checkpoint, device)
-        features = FeatureConfig.from_dict(ckpt["feature_config"])
         self.path: Path | None = Path(checkpoint)
-        self._adopt(model, features, Normalization.from_dict(normalization_arrays(ckpt)), encoder, options)
+        self._adopt(model, features, norm, encoder, options)
 
     @classmethod
     def from_model(
@@ -90,7 +104,10 @@ class CheckpointGenerator(Generator):
         if self._encoder is None:
             self._encoder = text_encoder_for(self.features)
         if self._encoder.dim != self.config.n_text:
-            raise InputError(f"text encoder gives {self._encoder.dim}-d vectors, the model needs {self.config.n_text}")
+            raise InputError(
+                f"{self.path or 'the model'}: its text encoder gives {self._encoder.dim}-d vectors, the model needs "
+                f"{self.config.n_text}; the checkpoint's feature config does not match its model"
+            )
         return self._encoder
 
     def at_model_rate(self, speech: Speech) -> Speech:

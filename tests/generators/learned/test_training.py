@@ -85,6 +85,29 @@ def test_checkpoint_round_trip(trained, fixture_data):
     assert np.abs(untrained.generate(speech).rotations - a).max() > 1e-3  # the weights matter
 
 
+@pytest.mark.parametrize(
+    ("edit", "pattern"),
+    [
+        (lambda c: c["model_config"].update(made_up=1), r"invalid model config \(TypeError: .*made_up"),
+        (lambda c: c.pop("model_name"), r"not a complete robogest checkpoint \('model_name' missing"),
+        (lambda c: c["normalization"].pop("pose_std"), r"invalid normalisation \(TypeError: .*pose_std"),
+        (lambda c: c["normalization"].update(pose_mean=c["normalization"]["pose_mean"][:10]),
+         r"invalid normalisation \(pose_mean is not 51 values\)"),
+    ],
+    ids=["extra-config-key", "no-model-name", "no-pose-std", "short-pose-mean"],
+)  # fmt: skip
+def test_an_edited_checkpoint_is_one_line_naming_file_and_part(trained, tmp_path, edit, pattern):
+    from robogest.errors import InputError
+    from robogest.generators.learned.gesticulator import GesticulatorGenerator
+
+    ckpt = torch.load(trained[1], weights_only=True)
+    edit(ckpt)
+    path = tmp_path / "edited.pt"
+    torch.save(ckpt, path)
+    with pytest.raises(InputError, match=r"edited\.pt: " + pattern):
+        GesticulatorGenerator(path)
+
+
 def test_make_generator_end_to_end(trained):
     """The registered name with checkpoint=... gives a HumanMotion of the speech's frames and duration."""
     from robogest.generators import generator_names, make_generator, register_generator
