@@ -327,6 +327,10 @@ class ControlLoop:
         """Connect (if needed), hold the present pose, torque on, start ticking (threaded mode)."""
         if self._started:
             return self
+        if self.backend.realtime:  # hardware: refuse a robot file whose limits the servos or the body cannot keep
+            from robogest.robot.validate import require_hardware_safe
+
+            require_hardware_safe(self.robot)
         set_rate = getattr(self.backend, "set_control_rate", None)
         if set_rate is not None:
             set_rate(self.rate_hz)

@@ -70,16 +70,11 @@ def load_sim_model(robot: RobotConfig) -> SimModel:
         model = mujoco.MjModel.from_xml_path(str(path))
     except ValueError as e:
         raise ConfigError(f"{where}: key model: MuJoCo cannot load {path}: {' '.join(str(e).split())}") from None
-    from robogest.robot.validate import joint_actuators, sim_mapping_problems
+    from robogest.robot.validate import joint_actuators, sim_mapping_problems, summary
 
     problems = sim_mapping_problems(robot, model)
     if problems:  # the simulator would not do what the YAML commands: say what, on one line
-        more = f" (and {len(problems) - 2} more)" if len(problems) > 2 else ""
-        said = "; ".join(str(p).removeprefix(f"{where}: ") for p in problems[:2])
-        raise ConfigError(
-            f"{where}: the MuJoCo model does not match the robot YAML: {said}{more}; "
-            f"`robogest robots validate {where}` lists every problem"
-        )
+        raise ConfigError(f"{where}: the MuJoCo model does not match the robot YAML: {summary(problems, where)}")
     qpos_idx, dof_idx, act_idx = [], [], []
     for j in robot.joints:
         jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j.name)

@@ -323,6 +323,9 @@ def _check_robot_write(robot: Any, link: Any, args: argparse.Namespace, name: st
         )
     if name == "LED" or (name == "TORQUE_ENABLE" and args.value == 0):
         return
+    from robogest.robot.validate import require_hardware_safe
+
+    require_hardware_safe(robot, "nothing written")  # the limits a goal is checked against must be the robot's
     backend, k = _joint_of_servo(robot, args)
     if name == "GOAL_POSITION":  # at the joint's speed, as a session moves it, not the servo's full speed
         cap = link.reg(backend.REG["speed_cap"].name)

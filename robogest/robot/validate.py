@@ -163,6 +163,37 @@ def sim_mapping_problems(robot: RobotConfig, m) -> list[Problem]:
     return _joint_problems(robot, m, robot.path or Path(f"{robot.name}.yaml"), robot.model_path, mapping_only=True)
 
 
+def summary(problems: list[Problem], where: object) -> str:
+    """The first two problems on one line (keys relative to ``where``, the robot file), the count of the rest, and
+    where to see them all: for the one-line refusals of the simulator and the control loop."""
+    more = f" (and {len(problems) - 2} more)" if len(problems) > 2 else ""
+    said = "; ".join(str(p).removeprefix(f"{where}: ") for p in problems[:2])
+    return f"{said}{more}; `robogest robots validate {where}` lists every problem"
+
+
+def require_hardware_safe(robot: RobotConfig, nothing: str = "nothing moved") -> None:
+    """Raise :class:`ConfigError` (one line, file and keys) when :func:`hardware_problems` finds any."""
+    problems = hardware_problems(robot)
+    if problems:
+        where = robot.path or robot.name
+        raise ConfigError(f"{where}: not safe to move real servos with ({nothing}): {summary(problems, where)}")
+
+
+def hardware_problems(robot: RobotConfig) -> list[Problem]:
+    """What must hold before real servos move under ``robot``'s YAML: servo models known, joint limits inside each
+    servo's tick range and inside the model's joint ranges (the robot's mechanical range), velocity limits the
+    servos can keep. The rest of :func:`validate_robot` concerns the simulation only."""
+    import mujoco
+
+    yml = robot.path or Path(f"{robot.name}.yaml")
+    out = _servo_problems(robot, yml)
+    try:
+        m = mujoco.MjModel.from_xml_path(str(robot.model_path))
+    except ValueError:  # no model to compare with (playing a trajectory needs none); validate reports it
+        return out
+    return out + [p for p in sim_mapping_problems(robot, m) if p.key.startswith("joints[")]
+
+
 def _joint_problems(robot: RobotConfig, m, yml: Path, mjcf: Path, mapping_only: bool = False) -> list[Problem]:
     """Every YAML joint against the model; ``mapping_only`` leaves out what only makes the simulation less
     faithful (no range on the MJCF joint, no damping, no force limit, actuators for other joints)."""

@@ -27,7 +27,7 @@ def make_robot(
     n_joints: int = 3,
     baudrate: int = 1_000_000,
     limit_rad: float = 1.0,
-    v_max: float = 4.0,
+    v_max: float = 3.0,  # within every default model's rating (STS3215: 3.54 rad/s)
     a_max: float = 40.0,
     directions: list[int] | None = None,
     name: str = "testbot",

@@ -19,7 +19,7 @@ from robogest.backends.base import Backend, check_goal, get_backend_factory
 from robogest.backends.mujoco_sim import MujocoBackend, sine_test_trajectory
 from robogest.backends.player import play
 from robogest.cli.main import main
-from robogest.errors import InputError, SafetyError
+from robogest.errors import ConfigError, InputError, SafetyError
 from robogest.robot import find_robot
 from robogest.trajectory import Trajectory, check_matches
 from robogest.virtualbus import VirtualBus
@@ -217,6 +217,23 @@ def test_play_refuses_a_trajectory_whose_limits_are_not_the_robots(tmp_path):
         assert all(len(v) == 0 for v in log.ticks.values()) and not any(s.torque_on for s in bus.servos)
 
 
+def test_real_servos_refuse_a_robot_file_whose_limits_they_cannot_keep(tmp_path):
+    """``robots validate`` refused a velocity limit past the servo's rating (or joint limits past the model's
+    range), yet play, jog and the live session moved real servos with it. The control loop now refuses it before
+    torque goes on: one line naming file and key, and nothing written to the bus."""
+    fast = make_robot(tmp_path, v_max=6.0)  # the XL430 turns at 6.39 rad/s unloaded; 75 % of that is the most
+    with VirtualBus(fast) as bus:
+        log = GoalLog(bus)
+        backend = get_backend_factory("dynamixel")(fast, port=bus.port, health_hz=0)
+        with pytest.raises(
+            ConfigError,
+            match=r"testbot\.yaml: not safe to move real servos with \(nothing moved\): "
+            r"key joints\[0\]\.max_velocity_rad_s: 6\.0 rad/s is more than 75%",
+        ):
+            play(sine_traj(fast), backend, time_scale=4.0)
+        assert all(len(v) == 0 for v in log.ticks.values()) and not any(s.torque_on for s in bus.servos)
+
+
 def test_a_goal_refused_mid_play_stops_at_rest_with_torque_off(tmp_path, monkeypatch):
     """A NaN that appears while playing (a stream, a bug) never reaches the bus: SafetyError, ramp to rest from the
     last goal sent, torque off."""
@@ -323,6 +340,18 @@ def test_servo_write_goal_position_checks_the_robots_limits(tmp_path, monkeypatc
         assert main(["servo", "write", "--port", bus.port, "--id", "9", "--robot", "wbot", "--register",
                      "goal_position", "--value", "2048"]) == 2  # fmt: skip
         assert "servo id 9 is not in robot wbot" in capsys.readouterr().err
+
+
+def test_servo_write_refuses_a_goal_under_a_robot_file_the_servos_cannot_keep(tmp_path, monkeypatch, capsys):
+    robot = make_robot(tmp_path, name="fastbot", v_max=6.0)
+    monkeypatch.setenv("ROBOGEST_ROBOTS", str(tmp_path))
+    with VirtualBus(robot) as bus:
+        before = bus.servo(2).get("goal")
+        rc = main(["servo", "write", "--port", bus.port, "--id", "2", "--robot", "fastbot", "--register",
+                   "GOAL_POSITION", "--value", str(before + 10)])  # fmt: skip
+        err = capsys.readouterr().err.strip().splitlines()
+        assert rc == 3 and len(err) == 1 and "not safe to move real servos with (nothing written)" in err[0], err
+        assert bus.servo(2).get("goal") == before
 
 
 # --- the reference pose and the shutdown ------------------------------------------------------------------------

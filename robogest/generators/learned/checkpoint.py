@@ -52,8 +52,11 @@ class CheckpointGenerator(Generator):
         if ckpt["model_name"] != self.name:
             raise InputError(f"{checkpoint}: a {ckpt['model_name']!r} checkpoint, not a {self.name} one")
         try:  # a file from another robogest version, or edited: one line naming the file and the part
-            what = "model config"
             config = self.config_cls.from_dict(ckpt["model_config"])
+        except (TypeError, ValueError, KeyError, AttributeError) as e:
+            raise InputError(f"{checkpoint}: invalid model config ({type(e).__name__}: {e})") from None
+        model = build_model(ckpt, lambda: self.net_cls(config), checkpoint, device)  # weights against the config
+        try:
             what = "feature config"
             features = FeatureConfig.from_dict(ckpt["feature_config"])
             what = "normalisation"
@@ -65,7 +68,6 @@ class CheckpointGenerator(Generator):
         bad = [k for k, n in sizes.items() if np.shape(getattr(norm, k)) != (n,)]
         if bad:
             raise InputError(f"{checkpoint}: invalid normalisation ({bad[0]} is not {sizes[bad[0]]} values)")
-        model = build_model(ckpt, lambda: self.net_cls(config), checkpoint, device)
         self.path: Path | None = Path(checkpoint)
         self._adopt(model, features, norm, encoder, options)
 
