@@ -86,9 +86,39 @@ def generator_options(args: argparse.Namespace) -> dict:
     return opts
 
 
-def speech_inputs(args: argparse.Namespace) -> dict[str, str | None]:
-    """The files :func:`speech_from_args` reads, by flag, for :func:`robogest.cli.checks.check_outputs`."""
-    return {"--audio": args.audio, "--transcript": args.transcript}
+def speech_inputs(args: argparse.Namespace) -> dict[str, str | list[str] | None]:
+    """The files :func:`speech_from_args` and the generator read, by flag, for
+    :func:`robogest.cli.checks.check_outputs`: the audio and transcript, and the gesture files."""
+    return {"--audio": args.audio, "--transcript": args.transcript, "--gestures": gesture_files(args)}
+
+
+def gesture_files(args: argparse.Namespace) -> list[str]:
+    """The gesture YAML files ``--gestures`` and ``$ROBOGEST_GESTURES`` name (files, or the YAMLs in folders)."""
+    import os
+
+    given = getattr(args, "gestures", None)
+    entries = [given] if given not in (None, "auto", "none") else []
+    entries += [e for e in os.environ.get("ROBOGEST_GESTURES", "").split(os.pathsep) if e]
+    out: list[str] = []
+    for entry in map(Path, entries):
+        if entry.is_dir():
+            out += [str(f) for f in sorted([*entry.glob("*.yaml"), *entry.glob("*.yml")])]
+        elif entry.is_file():
+            out.append(str(entry))
+    return out
+
+
+def robot_files(name_or_path: str) -> list[str]:
+    """The robot's YAML and the MJCF files of its model's folder (the model and the files it includes), which no
+    output may overwrite; empty when the robot does not load (the command reports that itself)."""
+    from robogest.errors import ConfigError
+    from robogest.robot.registry import find_robot
+
+    try:
+        robot = find_robot(name_or_path)
+    except ConfigError:
+        return [name_or_path] if Path(name_or_path).is_file() else []
+    return [str(robot.path), *(str(f) for f in sorted(robot.model_path.parent.glob("*.xml")))]
 
 
 def speech_from_args(args: argparse.Namespace) -> Speech:

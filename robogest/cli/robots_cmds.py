@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from robogest.cli import checks
-from robogest.cli.common import TextTable, add_json_flag, print_json, print_table, print_text
+from robogest.cli.common import TextTable, add_json_flag, print_json, print_table, print_text, robot_files
 from robogest.errors import ConfigError
 from robogest.robot.registry import DEFAULT_ROBOT, find_robot, list_robots
 
@@ -141,7 +141,7 @@ def show_robot(robot: RobotConfig) -> None:
 
 def cmd_show(args: argparse.Namespace) -> int:
     if args.render is not None:
-        checks.check_outputs({"--render": args.render}, {"ROBOT": args.robot if Path(args.robot).is_file() else None})
+        checks.check_outputs({"--render": args.render}, {"ROBOT": robot_files(args.robot)})
     robot = find_robot(args.robot)
     rendered = None
     if args.render is not None:

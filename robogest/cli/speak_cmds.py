@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -13,6 +12,7 @@ from robogest.cli.common import (
     add_speech_args,
     ensure_audio_file,
     generator_options,
+    robot_files,
     speech_from_args,
     speech_inputs,
 )
@@ -103,8 +103,7 @@ def _check_paths(args: argparse.Namespace, inputs: dict[str, str | None]) -> Non
         outputs["--export"] = args.export
     if args.save and getattr(args, "text", None) is not None:  # synthesized speech is saved beside --save
         outputs["--save's audio"] = str(Path(args.save).with_suffix(".wav"))
-    robot_file = args.robot if os.path.isfile(args.robot) else None
-    checks.check_outputs(outputs, {**inputs, "--robot": robot_file})
+    checks.check_outputs(outputs, {**inputs, "--robot": robot_files(args.robot)})
 
 
 def _backend_options(args: argparse.Namespace) -> dict:

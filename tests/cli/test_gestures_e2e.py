@@ -119,3 +119,31 @@ def test_eval_reports_stroke_sync_on_the_robots_wrist_sites(tmp_path):
     assert main([*args, "--shifts", "30"]) == 0
     s = json.loads(out.read_text())["results"]["talk"]["beat_sync"]["stroke_sync"]
     assert s["n_peaks"] > 3 and s["n_shifts"] == 30 and 0 <= s["hit"] <= 1 and s["z"] is not None
+
+
+def test_no_output_overwrites_a_gesture_file_or_the_robots_model(tmp_path, capsys, monkeypatch):
+    """An output on one of the files a command reads was written over it (a plot over the gesture YAML, a
+    render over the MJCF); it is refused before any work, naming both flags."""
+    import shutil
+
+    from robogest.robot.registry import robots_dir
+
+    mine = tmp_path / "g.yaml"
+    mine.write_text("units: {}\n")
+    for argv in (["speak", "Hi there.", "--gestures", str(mine), "--plot", str(mine)],
+                 ["generate", "--text", "Hi there.", "--gestures", str(tmp_path), "--out", str(mine)]):  # fmt: skip
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--gestures" in err[0], err
+        assert mine.read_text() == "units: {}\n"
+    shutil.copytree(robots_dir().parent / "sim" / "humanoid", tmp_path / "sim" / "humanoid")
+    (tmp_path / "robots").mkdir()
+    shutil.copy(robots_dir() / "humanoid_xl430.yaml", tmp_path / "robots" / "h.yaml")
+    model = tmp_path / "sim" / "humanoid" / "humanoid_body.xml"  # included by the scene the YAML names
+    before = model.read_bytes()
+    for argv in (["robots", "show", str(tmp_path / "robots" / "h.yaml"), "--render", str(model)],
+                 ["speak", "Hi.", "--robot", str(tmp_path / "robots" / "h.yaml"), "--save", str(model)]):  # fmt: skip
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "humanoid_body.xml" in err[0], err
+        assert model.read_bytes() == before
