@@ -16,9 +16,11 @@ import contextlib
 import importlib
 import io
 import os
+import signal
 import sys
+import threading
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 from robogest.cli.checks import OneLineParser
 from robogest.errors import RobogestError
@@ -128,6 +130,36 @@ def main(argv: Sequence[str] | None = None) -> int:
         warnings.showwarning = previous
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP outside motion: unwinds like Ctrl-C, so half-written outputs are removed on the way out
+    (Python's default for these signals ends the process at once, leaving them). ``exit_code`` is 128 + signum."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(f"terminated by {signal.Signals(signum).name}")
+        self.exit_code = 128 + signum
+
+
+@contextlib.contextmanager
+def _terminate_like_ctrl_c() -> Iterator[None]:
+    """Within the block, SIGTERM and SIGHUP raise :class:`Terminated` (main thread; a SIGHUP ignored by ``nohup``
+    stays ignored). During motion the control loop's own handlers take over and end at rest."""
+    taken = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+            if sig is None or signal.getsignal(sig) is signal.SIG_IGN:
+                continue
+            taken[sig] = signal.signal(sig, _raise_terminated)
+    try:
+        yield
+    finally:
+        for sig, prev in taken.items():
+            signal.signal(sig, prev)
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated(signum)
+
+
 def _run(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -135,7 +167,8 @@ def _run(argv: Sequence[str] | None) -> int:
         parser.print_help()
         return 2
     try:
-        rc = int(args.func(args) or 0)
+        with _terminate_like_ctrl_c():
+            rc = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, inside the handler in main, not at interpreter exit
         return rc
     except RobogestError as e:

@@ -159,8 +159,19 @@ def import_urdf(urdf: str | Path, out_yaml: str | Path, name: str | None = None,
             _yaml(name, urdf, m, joints, rest, velocity, arms, vectors, flip, fixed, guesses, model_rel)
         )
 
-    write(_start_pose(m, joints))
-    write(_settle_rest(out_yaml, guesses, single_arm=len(arms) == 1))
+    # Settling the rest pose reads the draft files, so they are written twice: an error or signal in between
+    # puts back what was there before (nothing, or what --force would have replaced), never a draft that loads.
+    before = {p: p.read_bytes() if p.is_file() else None for p in (scene_path, mjcf_path, out_yaml)}
+    try:
+        write(_start_pose(m, joints))
+        write(_settle_rest(out_yaml, guesses, single_arm=len(arms) == 1))
+    except BaseException:
+        for path, old in before.items():
+            if old is None:
+                path.unlink(missing_ok=True)
+            else:
+                path.write_bytes(old)
+        raise
     return UrdfImport(out_yaml, mjcf_path, scene_path, guesses)
 
 

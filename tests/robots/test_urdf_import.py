@@ -251,3 +251,25 @@ def test_roles_from_link_names(tmp_path):
     res = import_urdf(tmp_path / "r.urdf", tmp_path / "r.yaml")
     assert any("shoulder_site at joint 'j2'" in g and "from the joint and link names" in g for g in res.guesses)
     assert [str(p) for p in validate(res.yaml_path)] == []
+
+
+def test_an_import_cut_short_while_settling_leaves_no_draft_robot(tmp_path, monkeypatch):
+    """The start-pose draft is written before the rest pose settles; a Ctrl-C (or SIGTERM) then left a robot with
+    every rest at 0 that validated. What was there before comes back: nothing, or the file --force replaces."""
+    import robogest.robot.urdf_import as ui
+
+    (tmp_path / "arm.urdf").write_text(arm_urdf())
+    out = tmp_path / "robots" / "arm.yaml"
+
+    def interrupted(*a, **k):
+        assert out.is_file()  # the draft exists while settling
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ui, "_settle_rest", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        import_urdf(tmp_path / "arm.urdf", out)
+    assert not out.exists() and not list((tmp_path / "sim").rglob("*.xml"))
+    out.write_text("mine\n")
+    with pytest.raises(KeyboardInterrupt):
+        import_urdf(tmp_path / "arm.urdf", out, overwrite=True)
+    assert out.read_text() == "mine\n"
