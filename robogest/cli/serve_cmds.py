@@ -45,7 +45,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-idle", action="store_true", help="hold rest between utterances (no breathing motion)")
     p.add_argument("--generator", default="rhythm", help="generator for say messages (default: %(default)s)")
     p.add_argument("--checkpoint", metavar="FILE", help="trained weights for a learned generator")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the gesture choices")
+    p.add_argument("--seed", type=checks.seed, default=0, help="random seed of the gesture choices, 0..2**32-1")
     p.add_argument(
         "--stop-within", type=checks.number(0.1, 10.0, "s"), default=0.45, metavar="SECONDS",
         help="keep the robot within SECONDS of standing at rest, so an interrupt is at rest within it; larger "
@@ -56,7 +56,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="no stop envelope: gestures as large as the joint limits allow (an interrupt then takes as long as the "
         "limits make it)",
     )  # fmt: skip
-    p.add_argument("--time-scale", type=float, default=1.0, help=argparse.SUPPRESS)  # tests: faster than real time
+    # tests: faster than real time
+    p.add_argument("--time-scale", type=checks.number(0.1, 100.0), default=1.0, help=argparse.SUPPRESS)
     p.set_defaults(func=run_serve)
 
 

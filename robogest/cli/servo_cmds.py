@@ -111,8 +111,8 @@ def register(subparsers: Any) -> None:
         if name != "ping":
             g = p.add_mutually_exclusive_group(required=True)
             g.add_argument("--register", help="register name, e.g. PRESENT_POSITION")
-            g.add_argument("--addr", type=checks.number(0, 65535, integer=True), help="raw address (with --size)")
-            p.add_argument("--size", type=int, choices=(1, 2, 4), default=None)
+            g.add_argument("--addr", type=checks.number(0, 65535, integer=True), help="raw address (needs --size)")
+            p.add_argument("--size", type=int, choices=(1, 2, 4), default=None, help="bytes at --addr: 1, 2 or 4")
         if name == "write":
             p.add_argument("--value", type=checks.number(-(2**31), 2**32 - 1, integer=True), required=True)
         p.set_defaults(func=_one)
@@ -210,7 +210,9 @@ def _resolve(link: Any, args: argparse.Namespace) -> tuple[str, int, int]:
             )
         addr, size = regs[key].value
         return key, addr, size
-    return f"address {args.addr}", args.addr, args.size or 1
+    if args.size is None:  # a 1-byte default read the low byte of a 4-byte register, and wrote it alone
+        raise InputError(f"--addr {args.addr} needs --size 1, 2 or 4 (the register's width in bytes), or --register")
+    return f"address {args.addr}", args.addr, args.size
 
 
 def _robot_protocol(robot: Any) -> str:

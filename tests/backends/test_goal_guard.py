@@ -342,6 +342,18 @@ def test_servo_write_goal_position_checks_the_robots_limits(tmp_path, monkeypatc
         assert "servo id 9 is not in robot wbot" in capsys.readouterr().err
 
 
+def test_a_raw_address_needs_its_width(tmp_path, capsys):
+    """``--addr`` without ``--size`` read (and wrote) one byte of what may be a 4-byte register."""
+    robot = make_robot(tmp_path)
+    with VirtualBus(robot) as bus:
+        before = bus.servo(1).get("goal")
+        for verb in (["read"], ["write", "--value", "3"]):
+            assert main(["servo", *verb, "--port", bus.port, "--id", "1", "--addr", "116"]) == 2
+            err = capsys.readouterr().err.strip().splitlines()
+            assert len(err) == 1 and "--addr 116 needs --size 1, 2 or 4" in err[0], err
+        assert bus.servo(1).get("goal") == before
+
+
 def test_servo_write_refuses_a_goal_under_a_robot_file_the_servos_cannot_keep(tmp_path, monkeypatch, capsys):
     robot = make_robot(tmp_path, name="fastbot", v_max=6.0)
     monkeypatch.setenv("ROBOGEST_ROBOTS", str(tmp_path))

@@ -324,6 +324,8 @@ CASES = [
     Case("stop-within-0", ["serve", "--stop-within", "0"], None, 2, r"argument --stop-within: 0 is out of range"),
     Case("fps-nan", ["play", "t.npz", "--fps", "nan"], None, 2, r"argument --fps: nan is out of range"),
     Case("fps-word", ["speak", "Hi", "--fps", "fast"], None, 2, r"argument --fps: 'fast' is not a number"),
+    # a negative seed made every say over the socket fail with a traceback on the server and no reply
+    Case("serve-seed-negative", ["serve", "--seed", "-1"], None, 2, r"argument --seed: -1 is out of range"),
     Case("seed-negative", ["speak", "Hi", "--seed", "-1"], None, 2,
          r"argument --seed: -1 is out of range; expected 0\.\.4294967295"),
     Case("seed-2-32", ["generate", "--text", "Hi", "--out", "m.bvh", "--seed", str(2**32)], None, 2,
