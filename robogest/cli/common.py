@@ -59,27 +59,34 @@ def generator_options(args: argparse.Namespace) -> dict:
     from robogest.errors import InputError
 
     opts: dict = {}
-    if args.amount is not None and args.style is not None:
+    checkpoint = getattr(args, "checkpoint", None)
+    if checkpoint and args.generator == "rhythm":
+        raise InputError("--checkpoint is for learned generators; the default 'rhythm' generator needs none")
+    style, amount = getattr(args, "style", None), getattr(args, "amount", None)
+    gestures, semantic = getattr(args, "gestures", "auto"), getattr(args, "semantic", "keywords")
+    if amount is not None and style is not None:
         raise InputError("give --amount or --style, not both")
-    amount = STYLES[args.style] if args.style else args.amount
-    custom = amount is not None or args.gestures != "auto" or args.semantic != "keywords"
+    amount = STYLES[style] if style else amount
+    custom = amount is not None or gestures != "auto" or semantic != "keywords"
     if custom and args.generator != "rhythm":
         raise InputError(
             f"--amount, --style, --gestures and --semantic are options of the 'rhythm' generator, "
             f"not {args.generator!r}"
         )
+    if checkpoint:
+        opts["checkpoint"] = checkpoint
     if amount is not None:
         if not 0.0 <= amount <= 2.0:
             raise InputError(f"--amount must be within [0, 2], got {amount}")
         opts["amount"] = float(amount)
-    if args.semantic != "keywords":
-        opts["semantic"] = args.semantic
-    if args.gestures == "none":
+    if semantic != "keywords":
+        opts["semantic"] = semantic
+    if gestures == "none":
         opts["gestures"] = "none"
-    elif args.gestures != "auto":
+    elif gestures != "auto":
         from robogest.generators import lexicon as lx
 
-        path = Path(args.gestures)
+        path = Path(gestures)
         if not path.exists():
             raise InputError(f"--gestures {path}: no such folder or file; give 'none' or a folder of gesture YAMLs")
         opts["repertoire"] = lx.Repertoire(lx.load_units([path, *lx.search_path()]))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from robogest.cli import checks
+from robogest.cli.common import generator_options
 from robogest.robot.registry import DEFAULT_ROBOT
 
 SERVE_EPILOG = """protocol (JSON text frames; binary frames are PCM of the open stream):
@@ -67,7 +68,7 @@ def run_serve(args: argparse.Namespace) -> int:
 
     host, port = parse_listen(args.listen)
     Server(None, host, port, token=args.token)  # refuses a non-loopback address without a token, before connecting
-    opts = {"checkpoint": args.checkpoint} if args.checkpoint else {}
+    opts = generator_options(args)  # checks --checkpoint against --generator, one line
     with Robot(
         args.robot, backend=args.backend, port=args.port, baudrate=args.baud, idle=not args.no_idle,
         generator=args.generator, generator_options=opts, seed=args.seed, time_scale=args.time_scale,

@@ -166,17 +166,14 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
 def run_speak(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from robogest.errors import InputError
     from robogest.pipeline import speak
     from robogest.robot import find_robot
 
-    if args.checkpoint and args.generator == "rhythm":
-        raise InputError("--checkpoint is for learned generators; the default 'rhythm' generator needs none")
     _check_paths(args, {**speech_inputs(args), "--checkpoint": args.checkpoint})
     _check_export(args)
     robot = find_robot(args.robot)
     speech = speech_from_args(args)
-    opts = {"checkpoint": args.checkpoint} if args.checkpoint else generator_options(args)
+    opts = generator_options(args)
     result = speak(speech, robot, args.generator, seed=args.seed, fps=args.fps, generator_options=opts)
     traj = result.trajectory
     if args.save:

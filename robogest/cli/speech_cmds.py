@@ -46,6 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--seed", type=checks.seed, default=0, help="random seed, 0..2**32-1; same input + seed = same motion"
     )
     add_gesture_args(g)
+    g.add_argument("--checkpoint", metavar="FILE", help="trained weights for a learned generator")
     g.add_argument("--plot", metavar="FILE.png", help="also plot wrist trajectories with beats and silent spans")
     g.set_defaults(func=run_generate)
 
@@ -78,7 +79,9 @@ def run_generate(args: argparse.Namespace) -> int:
     from robogest.generators import make_generator
     from robogest.motion import save_bvh
 
-    checks.check_outputs({"--out": args.out, "--plot": args.plot}, speech_inputs(args))
+    checks.check_outputs(
+        {"--out": args.out, "--plot": args.plot}, {**speech_inputs(args), "--checkpoint": args.checkpoint}
+    )
     speech = speech_from_args(args)
     motion = make_generator(args.generator, **generator_options(args)).generate(speech, seed=args.seed)
     save_bvh(motion, Path(args.out))

@@ -326,6 +326,12 @@ CASES = [
     Case("fps-word", ["speak", "Hi", "--fps", "fast"], None, 2, r"argument --fps: 'fast' is not a number"),
     # a negative seed made every say over the socket fail with a traceback on the server and no reply
     Case("serve-seed-negative", ["serve", "--seed", "-1"], None, 2, r"argument --seed: -1 is out of range"),
+    # --checkpoint with the default generator was a traceback in serve; with it, speak ignored --style silently
+    Case("serve-checkpoint-rhythm", ["serve", "--checkpoint", "x.pt"], None, 2, r"--checkpoint is for learned gen"),
+    Case("speak-checkpoint-style", ["speak", "Hi", "--generator", "gesticulator", "--checkpoint", "x.pt", "--style",
+         "lively"], None, 2, r"--amount, --style, --gestures and --semantic are options of the 'rhythm' generator"),
+    Case("generate-checkpoint", ["generate", "--text", "Hi", "--out", "g.bvh", "--generator", "gesticulator",
+         "--checkpoint", "nothere.pt"], None, 2, r"nothere\.pt: checkpoint not found", needs=("torch",)),
     Case("seed-negative", ["speak", "Hi", "--seed", "-1"], None, 2,
          r"argument --seed: -1 is out of range; expected 0\.\.4294967295"),
     Case("seed-2-32", ["generate", "--text", "Hi", "--out", "m.bvh", "--seed", str(2**32)], None, 2,
