@@ -123,8 +123,28 @@ def _check_export(args: argparse.Namespace) -> None:
         check_export(args.export)
 
 
-def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr: int) -> None:
-    """Save, export, then play on the chosen backend, printing each result as soon as it is known."""
+def _hardware_backend(args: argparse.Namespace, robot):
+    """The real backend ``--backend`` names, made before any work (None for the simulator), so an unknown backend,
+    a missing port, a robot file the servos cannot keep or a simulator-only flag fails before anything is computed
+    or written."""
+    if args.backend == "sim":
+        return None
+    from robogest.backends import get_backend_factory
+    from robogest.errors import InputError
+    from robogest.robot.validate import require_hardware_safe
+
+    sim_only = [flag for flag, on in (("--video", args.video), ("--realtime", args.realtime), ("--view", args.view))
+                if on]  # fmt: skip
+    if sim_only:
+        raise InputError(f"{', '.join(sim_only)}: the simulator's only; leave them out with --backend {args.backend}")
+    backend = get_backend_factory(args.backend)(robot, **_backend_options(args))
+    require_hardware_safe(robot)
+    return backend
+
+
+def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr: int, backend=None) -> None:
+    """Save, export, then play on the chosen backend (``backend``, from :func:`_hardware_backend`; the simulator
+    when None), printing each result as soon as it is known."""
     from robogest.cli.progress import progress_bar
 
     if args.save:
@@ -134,7 +154,7 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
         from robogest.trajectory.export import export_trajectory
 
         print(f"exported: {export_trajectory(traj, args.export)}")
-    if args.backend == "sim":
+    if backend is None:
         from robogest.backends.mujoco_sim import simulate
 
         width, height = args.video_size
@@ -148,10 +168,8 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
         if args.video:
             print(f"video: {args.video}")
     else:
-        from robogest.backends import get_backend_factory
         from robogest.backends.player import play
 
-        backend = get_backend_factory(args.backend)(robot, **_backend_options(args))
         with progress_bar("playing") as cb:
             rep = play(
                 traj, backend, rate_hz=args.fps, audio=audio, audio_sr=sr,
@@ -172,8 +190,9 @@ def run_speak(args: argparse.Namespace) -> int:
     _check_paths(args, {**speech_inputs(args), "--checkpoint": args.checkpoint})
     _check_export(args)
     robot = find_robot(args.robot)
-    speech = speech_from_args(args)
     opts = generator_options(args)
+    backend = _hardware_backend(args, robot)
+    speech = speech_from_args(args)
     result = speak(speech, robot, args.generator, seed=args.seed, fps=args.fps, generator_options=opts)
     traj = result.trajectory
     if args.save:
@@ -190,7 +209,7 @@ def run_speak(args: argparse.Namespace) -> int:
         plot_motion(args.plot, result.motion, speech, traj)
         lines.append(f"plot: {args.plot}")
     _report(lines)  # before the (long) playback, so a pipe or log sees it at once
-    _finish(args, robot, traj, speech.audio, speech.sr)
+    _finish(args, robot, traj, speech.audio, speech.sr, backend)
     return 0
 
 
@@ -209,6 +228,7 @@ def run_play(args: argparse.Namespace) -> int:
     _check_paths(args, {"MOTION": args.motion, "--audio": args.audio})
     _check_export(args)
     robot = find_robot(args.robot)
+    backend = _hardware_backend(args, robot)
     audio, sr = None, 16000
     if args.audio:
         from robogest.speech import load_speech
@@ -234,5 +254,5 @@ def run_play(args: argparse.Namespace) -> int:
         traj, _, _ = motion_to_trajectory(motion, robot, fps=args.fps, audio_path=args.audio or "")
     lines = [f"motion: {path} -> {traj.n_frames} commands at {traj.fps:g} Hz for {robot.name}"]
     _report(lines)
-    _finish(args, robot, traj, audio, sr)
+    _finish(args, robot, traj, audio, sr, backend)
     return 0

@@ -538,3 +538,19 @@ def test_out_of_memory_is_one_line(monkeypatch, capsys) -> None:
     assert main(["analyze", "--text", "Hi"]) == 1
     err = capsys.readouterr().err
     assert err.splitlines() == ["robogest: error: out of memory; the input is too large for this machine"]
+
+
+def test_backend_flags_fail_before_any_work_or_output(tmp_path, capsys):
+    """An unknown backend, a missing port or a simulator-only flag on hardware failed only after the speech was
+    generated and --save / --export written (a 58 MB export in one case)."""
+    save, csv = tmp_path / "t.npz", tmp_path / "t.csv"
+    for argv, code, line in (
+        (["--backend", "nosuch"], 2, "unknown backend"),
+        (["--backend", "dynamixel"], 3, "serial port"),
+        (["--backend", "dynamixel", "--port", "/dev/null", "--video", str(tmp_path / "v.mp4")], 2,
+         "--video: the simulator's only"),
+    ):  # fmt: skip
+        assert main(["speak", "Hello there.", "--save", str(save), "--export", str(csv), *argv]) == code
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and line in err[0], err
+        assert list(tmp_path.iterdir()) == []
