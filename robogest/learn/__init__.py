@@ -11,6 +11,7 @@ what to install.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 from robogest.errors import InputError, MissingDependencyError
@@ -49,7 +50,10 @@ def config_with_overrides(cls: type, model: str, overrides: dict[str, Any], **fi
         f = fields[key]
         default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
         values[key] = _coerce(model, key, value, default)
-    return cls(**{**values, **fixed})
+    try:
+        return cls(**{**values, **fixed})
+    except ValueError as e:  # the config's own consistency checks (e.g. a window too short for its inputs)
+        raise InputError(f"{model} options: {e}") from None
 
 
 def _coerce(model: str, key: str, value: Any, default: Any) -> Any:
@@ -63,6 +67,13 @@ def _coerce(model: str, key: str, value: Any, default: Any) -> Any:
     }.get(kind, True)
     if not ok:
         raise InputError(f"{model} option {key}={value!r}: expected {kind.__name__} (default {default!r})")
+    if kind in (int, float):  # every numeric model option is a size, count, rate, weight or probability
+        if not math.isfinite(value) or value < 0:
+            raise InputError(f"{model} option {key}={value!r}: expected a finite number >= 0 (default {default!r})")
+        if "dropout" in key and not value < 1:
+            raise InputError(f"{model} option {key}={value!r}: a dropout probability is below 1 (default {default!r})")
+        if key.startswith("lr") and not value > 0:
+            raise InputError(f"{model} option {key}={value!r}: a learning rate is above 0 (default {default!r})")
     if kind is float:
         return float(value)
     if kind is tuple:

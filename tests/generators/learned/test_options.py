@@ -35,6 +35,29 @@ def test_overrides_are_typed_like_the_defaults():
         config_with_overrides(Demo, "demo", {"size": 1})
 
 
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"past": -5}, r"gesticulator option past=-5: expected a finite number >= 0"),
+        ({"dropout": float("nan")}, r"gesticulator option dropout=nan: expected a finite number"),
+        ({"dropout": 2.0}, r"gesticulator option dropout=2\.0: a dropout probability is below 1"),
+        ({"past": 2}, r"gesticulator options: past=2 must be at least n_prev_poses=3"),
+        ({"train_frames": 0}, r"gesticulator options: train_frames=0 must be at least 1"),
+    ],
+)
+def test_values_a_model_cannot_train_with_are_refused_before_training(overrides, message):
+    """They were tracebacks from torch, one of them after 7 epochs of training (past=2 broke the autoregressive
+    input only when it was switched on)."""
+    from robogest.generators.learned.gesticulator.model import GesticulatorConfig
+
+    with pytest.raises(InputError, match=message):
+        config_with_overrides(GesticulatorConfig, "gesticulator", overrides)
+    with pytest.raises(InputError, match=r"s2ag option lr_generator=0: a learning rate is above 0"):
+        from robogest.generators.learned.s2ag.config import S2AGConfig
+
+        config_with_overrides(S2AGConfig, "s2ag", {"lr_generator": 0})
+
+
 def test_set_values_are_json_or_plain_words():
     assert parse_options(["a=3", "b=0.5", "c=true", "d=[1, 2]", "e=joint", "f="]) == {
         "a": 3, "b": 0.5, "c": True, "d": [1, 2], "e": "joint", "f": ""

@@ -71,6 +71,12 @@ class GesticulatorConfig:
     train_frames: int = 40
     pretrain_epochs: int = 7
 
+    def __post_init__(self) -> None:
+        if self.past < self.n_prev_poses:  # the autoregressive input is the n_prev_poses frames before the first
+            raise ValueError(f"past={self.past} must be at least n_prev_poses={self.n_prev_poses}")
+        if self.train_frames < 1:
+            raise ValueError(f"train_frames={self.train_frames} must be at least 1")
+
     @property
     def n_input(self) -> int:
         return self.n_acoustic + self.n_text
