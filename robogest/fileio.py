@@ -69,6 +69,13 @@ def check_output_dir(path: str | os.PathLike, what: str = "output folder") -> Pa
     return real
 
 
+def check_output_parent(path: str | os.PathLike, what: str = "output") -> None:
+    """The folder ``path`` (a file or a folder to be made) would go in is one robogest may write in, or can be
+    made: no file stands where a folder must be. InputError naming ``what`` otherwise."""
+    text = os.fspath(path)
+    _check_writable_folder(Path(os.path.realpath(text)).parent, what, text)
+
+
 def _check_writable_folder(folder: Path, what: str, text: str) -> None:
     """The nearest existing folder at or above ``folder`` is a folder robogest may write in."""
     while not folder.exists():

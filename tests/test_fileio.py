@@ -127,3 +127,35 @@ def test_publish_never_replaces_a_fifo(tmp_path):
     with pytest.raises(InputError, match="FIFO"):
         publish(tmp, fifo)
     assert stat.S_ISFIFO(fifo.stat().st_mode)
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")  # soundfile's cffi I/O callbacks
+def test_exports_and_speech_audio_on_a_full_disk(full_disk):
+    """The ROS exports and libsndfile's short write (an AssertionError in soundfile) were tracebacks."""
+    pytest.importorskip("rosbags")
+    from types import SimpleNamespace
+
+    from robogest.speech.export import write_wav
+    from robogest.trajectory.export import export_trajectory
+    from tests.trajectory.test_export import _traj
+
+    traj = _traj(n=20_000)
+    for name in ("t.mcap", "bag"):
+        with pytest.raises(RobogestError, match=rf"{name}: cannot write \(No space left on device\); nothing was"):
+            export_trajectory(traj, full_disk / name)
+    speech = SimpleNamespace(audio=np.zeros(200_000, np.float32), sr=16000)
+    with pytest.raises(RobogestError, match=r"s\.wav: cannot write .*nothing was written"):
+        write_wav(speech, full_disk / "s.wav")
+    assert sorted(p.name for p in full_disk.iterdir()) == ["filler"]
+
+
+def test_an_export_below_a_file_is_refused_before_any_work(tmp_path):
+    from robogest.trajectory.export import check_export
+
+    (tmp_path / "a.wav").write_text("x")
+    for target in ("a.wav/bag", "a.wav/t.mcap", "a.wav/t.csv"):
+        with pytest.raises(InputError, match=r"--export .*a\.wav is a file, not a folder"):
+            check_export(tmp_path / target)
+    os.symlink(tmp_path / "nowhere", tmp_path / "dangling")
+    with pytest.raises(InputError, match=r"--export .*dangling: is a symlink"):
+        check_export(tmp_path / "dangling")

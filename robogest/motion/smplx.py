@@ -53,11 +53,11 @@ def _body_rotvecs(data: dict[str, np.ndarray], path: Path) -> np.ndarray:
                 f"{path}: 'poses' must be (T, 3*J) axis-angle with J >= 22 joints (SMPL-X: 165), "
                 f"got shape {poses.shape}. Export SMPL-X/SMPL-H/SMPL parameters."
             )
-        return poses.reshape(poses.shape[0], -1, 3)[:, :22]  # (T, J, 3) -> first 22 body joints
+        return poses.reshape(poses.shape[0], poses.shape[1] // 3, 3)[:, :22]  # (T, J, 3) -> first 22 body joints
     if "root_orient" in data and "pose_body" in data:
         root = np.asarray(data["root_orient"], dtype=np.float64).reshape(-1, 1, 3)  # (T, 1, 3)
         body = np.asarray(data["pose_body"], dtype=np.float64)
-        body = body.reshape(body.shape[0], -1, 3)[:, :21]  # (T, 21, 3)
+        body = body.reshape(body.shape[0], -1, 3)[:, :21] if body.size else np.zeros((0, 21, 3))  # (T, 21, 3)
         if body.shape[1] != 21 or body.shape[0] != root.shape[0]:
             raise InputError(f"{path}: 'pose_body' must be (T, 63) matching 'root_orient' (T, 3)")
         return np.concatenate([root, body], axis=1)

@@ -9,7 +9,7 @@ from typing import IO, Any
 import numpy as np
 
 from robogest.errors import InputError
-from robogest.fileio import atomic_path
+from robogest.fileio import atomic_path, write_error
 from robogest.speech.types import Speech
 
 
@@ -18,8 +18,13 @@ def _atomic_write(path: str | Path, write: Callable[[IO[bytes]], None]) -> Path:
     p = Path(path)
     if not p.parent.is_dir():
         raise InputError(f"{p}: output folder {p.parent} does not exist")
-    with atomic_path(p) as tmp, open(tmp, "wb") as f:
-        write(f)
+    try:
+        with atomic_path(p) as tmp, open(tmp, "wb") as f:
+            write(f)
+    except AssertionError:  # libsndfile's short write (disk full) reaches soundfile as an assertion
+        raise write_error(p, OSError("short write: the disk may be full")) from None
+    except OSError as e:
+        raise write_error(p, e) from None
     return p
 
 

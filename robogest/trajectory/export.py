@@ -19,13 +19,14 @@ from __future__ import annotations
 
 import csv
 import io
+import os
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from robogest.errors import InputError, MissingDependencyError
-from robogest.fileio import atomic_path, publish
+from robogest.fileio import atomic_path, check_output_parent, publish, write_error
 from robogest.trajectory.types import Trajectory
 
 TRAJECTORY_TOPIC = "/robogest/joint_trajectory"
@@ -50,7 +51,11 @@ def export_format(path: str | Path) -> str:
 def check_export(path: str | Path) -> None:
     """Everything :func:`export_trajectory` could refuse (name, existing folder, missing rosbags), checked
     before any motion starts so a wrong ``--export`` fails at once rather than after playback."""
-    if export_format(path) in ("mcap", "bag"):
+    fmt = export_format(path)
+    if fmt == "bag" and os.path.islink(path):  # a dangling link: the bag would be renamed over it
+        raise InputError(f"--export {path}: is a symlink; a bag folder is made new, give a name that is not taken")
+    check_output_parent(path, "--export")
+    if fmt in ("mcap", "bag"):
         _rosbags()
 
 
@@ -137,7 +142,10 @@ def write_bag_folder(traj: Trajectory, folder: Path) -> None:
     folder.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f".{folder.name}.", dir=folder.parent) as tmp:
         staged = Path(tmp) / folder.name
-        _write_bag(traj, staged)
+        try:
+            _write_bag(traj, staged)
+        except OSError as e:  # disk full mid-write: the staging folder goes with the context
+            raise write_error(folder, e) from None
         staged.rename(folder)  # the finished bag appears at once
 
 
@@ -146,5 +154,8 @@ def write_mcap(traj: Trajectory, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f".{path.name}.", dir=path.parent) as tmp:
         staged = Path(tmp) / path.stem
-        _write_bag(traj, staged)
+        try:
+            _write_bag(traj, staged)
+        except OSError as e:  # disk full mid-write: the staging folder goes with the context
+            raise write_error(path, e) from None
         publish(staged / f"{path.stem}.mcap", path)

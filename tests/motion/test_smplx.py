@@ -59,3 +59,12 @@ def test_errors(tmp_path):
     p.write_text("not a zip")
     with pytest.raises(InputError, match=r"not a readable \.npz"):
         load_smplx(p)
+
+
+def test_a_file_with_no_frames_is_one_line(tmp_path):
+    """``poses`` shaped (0, 165) was a numpy reshape traceback."""
+    np.savez(tmp_path / "p.npz", poses=np.zeros((0, 165)), trans=np.zeros((0, 3)), mocap_frame_rate=30.0)
+    np.savez(tmp_path / "a.npz", root_orient=np.zeros((0, 3)), pose_body=np.zeros((0, 63)), mocap_frame_rate=30.0)
+    for name in ("p.npz", "a.npz"):
+        with pytest.raises(InputError, match=rf"{name}: the file has no frames"):
+            load_smplx(tmp_path / name)
