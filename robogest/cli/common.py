@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from robogest.cli import checks
+
 if TYPE_CHECKING:  # imported lazily: `robogest --help` must not load numpy
     from robogest.speech.types import Speech
 
@@ -25,8 +27,12 @@ def add_speech_args(p: argparse.ArgumentParser, text_positional: bool = True) ->
         metavar="FILE",
         help="words for --audio: Praat .TextGrid (words tier), .json word timings, or plain .txt",
     )
-    p.add_argument("--voice", default="en-us", help="eSpeak NG voice for TEXT (default: %(default)s)")
-    p.add_argument("--wpm", type=int, default=160, help="speaking rate for TEXT, words/min (default: %(default)s)")
+    p.add_argument("--voice", help="eSpeak NG voice for TEXT (default: en-us)")
+    p.add_argument(
+        "--wpm",
+        type=checks.number(80, 450, integer=True),
+        help="speaking rate for TEXT, words/min, 80-450 (default: 160)",
+    )
 
 
 #: Named styles for ``--style``: the ``--amount`` each stands for.
@@ -129,11 +135,15 @@ def robot_files(name_or_path: str) -> list[str]:
 
 
 def speech_from_args(args: argparse.Namespace) -> Speech:
+    from robogest.errors import InputError
     from robogest.pipeline import load_speech_input
 
+    if args.audio is not None and (args.voice is not None or args.wpm is not None):
+        raise InputError("--voice and --wpm are for TEXT spoken by eSpeak NG; --audio is already spoken")
     return load_speech_input(
-        text=args.text, audio=args.audio, transcript=args.transcript, voice=args.voice, words_per_minute=args.wpm
-    )
+        text=args.text, audio=args.audio, transcript=args.transcript, voice=args.voice or "en-us",
+        words_per_minute=args.wpm or 160,
+    )  # fmt: skip
 
 
 def ensure_audio_file(speech: Speech, beside: Path) -> str:

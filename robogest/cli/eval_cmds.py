@@ -313,6 +313,8 @@ def _pooled_fgd(results: dict[str, dict]) -> dict | None:
 
 
 def run_eval(args: argparse.Namespace) -> int:
+    if args.transcript and not args.audio:
+        raise InputError("--transcript goes with --audio (the speech it transcribes); add --audio")
     pred_files = _files(Path(args.pred), MOTION_SUFFIXES, "motion/trajectory")
     single = Path(args.pred).is_file()
     gt_files = _files(Path(args.gt), MOTION_SUFFIXES, "ground truth") if args.gt else None

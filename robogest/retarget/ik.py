@@ -57,7 +57,8 @@ class DirectionIK(Retargeter):
         try:
             self.model = mujoco.MjModel.from_xml_path(str(robot.model_path))
         except Exception as e:  # mujoco raises ValueError with the parser's message
-            raise ConfigError(f"{robot.path}: key model: MuJoCo cannot load {robot.model_path}: {e}") from None
+            msg = " ".join(str(e).split())  # the parser's message spans lines; errors are one line
+            raise ConfigError(f"{robot.path}: key model: MuJoCo cannot load {robot.model_path}: {msg}") from None
         self.data = mujoco.MjData(self.model)
         m = self.model
         self.qadr = np.empty(len(robot.joints), dtype=int)

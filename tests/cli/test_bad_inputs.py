@@ -325,6 +325,11 @@ CASES = [
     Case("fps-nan", ["play", "t.npz", "--fps", "nan"], None, 2, r"argument --fps: nan is out of range"),
     Case("fps-word", ["speak", "Hi", "--fps", "fast"], None, 2, r"argument --fps: 'fast' is not a number"),
     # a negative seed made every say over the socket fail with a traceback on the server and no reply
+    Case("voice-with-audio", ["speak", "--audio", "a.wav", "--wpm", "120"], None, 2,
+         r"--voice and --wpm are for TEXT spoken by eSpeak NG; --audio is already spoken"),
+    Case("wpm-out-of-range", ["speak", "Hi", "--wpm", "5"], None, 2, r"argument --wpm: 5 is out of range"),
+    Case("eval-transcript-alone", ["eval", "--pred", "p.npz", "--transcript", "t.txt"], None, 2,
+         r"--transcript goes with --audio"),
     Case("serve-seed-negative", ["serve", "--seed", "-1"], None, 2, r"argument --seed: -1 is out of range"),
     # --checkpoint with the default generator was a traceback in serve; with it, speak ignored --style silently
     Case("serve-checkpoint-rhythm", ["serve", "--checkpoint", "x.pt"], None, 2, r"--checkpoint is for learned gen"),
