@@ -115,6 +115,25 @@ def _first(stem_dir: Path, name: str, exts: Sequence[str]) -> Path | None:
     return None
 
 
+def _layout_dirs(root: Path) -> tuple[Path, Path, Path, tuple[str, ...]]:
+    """``(audio, motion, transcripts, motion suffixes)`` of the layout :func:`detect_layout` finds at ``root``."""
+    layout = detect_layout(root)
+    if layout == "genea":
+        return root / "Audio", root / "Motion", root / "Transcripts", (".bvh",)
+    if layout == "beat2":
+        return root / "wave16k", root / "smplxflame_30", root / "textgrid", (".npz",)
+    return root, root, root, _MOTION_EXT
+
+
+def unpaired_files(root: str | os.PathLike) -> list[Path]:
+    """Audio files with no motion file of the same name, and motion files with no audio: left out of training
+    (a renamed or missing half is usually a mistake worth a warning)."""
+    audio_dir, motion_dir, _, motion_ext = _layout_dirs(Path(root))
+    audio = {p.stem: p for p in audio_dir.iterdir() if p.suffix.lower() in _AUDIO_EXT}
+    motion = {p.stem: p for p in motion_dir.iterdir() if p.suffix.lower() in motion_ext}
+    return sorted([p for n, p in audio.items() if n not in motion] + [p for n, p in motion.items() if n not in audio])
+
+
 def _pair(audio_dir: Path, motion_dir: Path, text_dir: Path | None, motion_ext: Sequence[str]) -> list[TakeFiles]:
     takes = []
     for a in sorted(p for p in audio_dir.iterdir() if p.suffix.lower() in _AUDIO_EXT):
@@ -148,12 +167,7 @@ def discover_takes(root: str | os.PathLike) -> list[TakeFiles]:
     if not root.is_dir():
         raise InputError(f"{root}: dataset folder not found")
     layout = detect_layout(root)
-    if layout == "genea":
-        takes = _pair(root / "Audio", root / "Motion", root / "Transcripts", (".bvh",))
-    elif layout == "beat2":
-        takes = _pair(root / "wave16k", root / "smplxflame_30", root / "textgrid", (".npz",))
-    else:
-        takes = _pair(root, root, root, _MOTION_EXT)
+    takes = _pair(*_layout_dirs(root))
     if not takes:
         raise InputError(
             f"{root}: no takes found ({layout} layout). Expected GENEA (Audio/*.wav + Motion/*.bvh), BEAT2 "
@@ -286,6 +300,12 @@ def compute_take(
     n = min(acoustic.shape[0], poses.shape[0])
     if n == 0:
         raise InputError(f"{files.audio}: the take has no frames")
+    a_s, m_s = acoustic.shape[0] / config.fps, poses.shape[0] / config.fps
+    if abs(a_s - m_s) > max(1.0, 0.1 * max(a_s, m_s)):  # a wrong frame rate or pairing, not a trailing second
+        (warn or _warn)(
+            f"{files.name}: audio {a_s:.1f} s and motion {m_s:.1f} s differ; trained on the first {n / config.fps:.1f} "
+            "s of both: check the motion's frame rate and that the files belong together"
+        )
     return Take(files.name, acoustic[:n], text[:n], poses[:n], float(config.fps), files.audio)
 
 
@@ -337,6 +357,10 @@ def load_dataset(
     """
     files = discover_takes(root)
     say = warn or _warn
+    lone = unpaired_files(root)
+    if lone and build:
+        names = ", ".join(p.name for p in lone[:3]) + (f" and {len(lone) - 3} more" if len(lone) > 3 else "")
+        say(f"{len(lone)} file(s) without their audio or motion half, left out: {names}")
     split = official_split(root)
     if split is not None:  # the official test takes never train or select a model
         test = [f for f in files if split.get(f.name, "test") == "test"]

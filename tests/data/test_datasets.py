@@ -335,3 +335,21 @@ def test_feature_cache_larger_than_the_memory_allowed_is_mapped_not_loaded(tmp_p
     r = subprocess.run([sys.executable, "-c", _CACHE_SCRIPT, str(tmp_path)], capture_output=True, text=True,
                        env=env, timeout=300)  # fmt: skip
     assert r.returncode == 0 and r.stdout.split()[0] == "ok", (r.stdout[-2000:], r.stderr[-2000:])
+
+
+def test_unpaired_files_and_a_length_mismatch_are_warned_about(tmp_path):
+    """A take's other half missing (a typo in a name) or audio and motion of very different lengths (a wrong frame
+    rate, a wrong pairing) trained silently: the first left out, the second cut to the shorter."""
+    import soundfile as sf
+
+    root = make_fixture_dataset(tmp_path / "d", n_takes=3, duration_s=3.0)
+    (root / "take_001.bvh").rename(root / "take_1.bvh")  # a renamed motion file: both halves are now alone
+    audio, sr = sf.read(root / "take_002.wav")
+    sf.write(root / "take_002.wav", np.concatenate([audio, audio, audio]), sr)  # 9 s of audio, 3 s of motion
+    lines: list[str] = []
+    takes = load_dataset(root, CFG, tmp_path / "cache", warn=lines.append)
+    assert [t.name for t in takes] == ["take_000", "take_002"]
+    assert any(line.startswith("2 file(s) without their audio or motion half, left out: take_001.wav, take_1.bvh")
+               for line in lines), lines  # fmt: skip
+    assert any(line.startswith("take_002: audio 9.0 s and motion 3.0 s differ") for line in lines), lines
+    assert not any(line.startswith("take_000") for line in lines)
