@@ -431,13 +431,29 @@ def check_limits(
     """
     if not np.all(np.isfinite(q)):  # NaN compares False with every bound below
         raise SafetyError("safety: command trajectory holds NaN or infinite angles (internal check)")
-    pos_bad = np.any((q < lo - TOL) | (q > hi + TOL) | (q < limits.q_min_rad - TOL) | (q > limits.q_max_rad + TOL))
-    d = np.diff(q, axis=0, prepend=q[:1] if d0 is None else q[:1] - d0)
-    vel_bad = np.any(np.abs(d) > limits.v_max_rad_s * dt_s + TOL)
-    acc_bad = np.any(np.abs(np.diff(d, axis=0)) > limits.a_max_rad_s2 * dt_s * dt_s + TOL)
-    if pos_bad or vel_bad or acc_bad:
-        what = [n for n, b in (("position", pos_bad), ("velocity", vel_bad), ("acceleration", acc_bad)) if b]
-        raise SafetyError(f"safety: command trajectory breaks the {'/'.join(what)} limit (internal check)")
+    pos_bad = (q < lo - TOL) | (q > hi + TOL) | (q < limits.q_min_rad - TOL) | (q > limits.q_max_rad + TOL)  # (T, J)
+    d = np.diff(q, axis=0, prepend=q[:1] if d0 is None else q[:1] - d0)  # (T, J) rad per frame
+    vel_bad = np.abs(d) > limits.v_max_rad_s * dt_s + TOL
+    dd = np.diff(d, axis=0)  # (T-1, J)
+    acc_bad = np.abs(dd) > limits.a_max_rad_s2 * dt_s * dt_s + TOL
+    if pos_bad.any() or vel_bad.any() or acc_bad.any():
+        what = [n for n, b in (("position", pos_bad), ("velocity", vel_bad), ("acceleration", acc_bad)) if b.any()]
+        if pos_bad.any():  # the first offending frame and joint of the first kind broken, for the message
+            t, j = np.argwhere(pos_bad)[0]
+            low, high = max(lo[j], limits.q_min_rad[j]), min(hi[j], limits.q_max_rad[j])
+            first = f"{q[t, j]:.4f} rad outside [{low:.4f}, {high:.4f}]"
+        elif vel_bad.any():
+            t, j = np.argwhere(vel_bad)[0]
+            first = f"{abs(d[t, j]) / dt_s:.3f} rad/s against {limits.v_max_rad_s[j]:g}"
+        else:
+            t, j = np.argwhere(acc_bad)[0]
+            t += 1
+            first = f"{abs(dd[t - 1, j]) / dt_s**2:.2f} rad/s² against {limits.a_max_rad_s2[j]:g}"
+        name = limits.names[j] if len(limits.names) > j else f"joint {j}"
+        raise SafetyError(
+            f"safety: command trajectory breaks the {'/'.join(what)} limit (internal check); first: {name} at frame "
+            f"{t} ({t * dt_s:.2f} s): {first}"
+        )
 
 
 def limit_acceleration(

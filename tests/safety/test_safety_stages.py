@@ -384,3 +384,21 @@ def test_fit_within_limits_continues_a_motion_under_way():
     assert abs(d[1] - step0[0]) <= 40.0 * dt * dt + 1e-9  # it brakes, no instant stop
     assert np.abs(np.diff(d)).max() <= 40.0 * dt * dt + 1e-6 and np.abs(d).max() <= 3.0 * dt + 1e-6
     assert fit[1, 0] > 0.0 and abs(fit[-1, 0]) < 1e-3  # overshoots while braking, then comes back
+
+
+def test_check_limits_names_the_first_joint_and_frame_that_breaks_a_limit():
+    """``play`` of a tampered trajectory said only "breaks the position limit": which joint, when, by how much."""
+    lim = JointLimits([-1.0, -1.0], [1.0, 1.0], [2.0, 2.0], [10.0, 10.0], [0.0, 0.0], names=("neck", "elbow"))
+    q = np.zeros((50, 2))
+    q[30, 1] = 50.0
+    with pytest.raises(
+        SafetyError,
+        match=r"position/velocity/acceleration limit \(internal check\); first: elbow "
+        r"at frame 30 \(0\.60 s\): 50\.0000 rad outside \[-1\.0000, 1\.0000\]",
+    ):
+        check_limits(q, lim, 0.02, lim.q_min_rad, lim.q_max_rad)
+    q = np.linspace(0, 0.9, 50)[:, None] * [1.0, 0.0]  # 0.92 rad/s from the first frame: an acceleration step
+    with pytest.raises(
+        SafetyError, match=r"breaks the acceleration limit .*first: neck at frame 1 .*rad/s² against 10"
+    ):
+        check_limits(q, lim, 0.02, lim.q_min_rad, lim.q_max_rad)
