@@ -45,7 +45,7 @@ def load_speech_input(
     from robogest import speech as sp
 
     if (text is None) == (audio is None):
-        raise InputError("give either TEXT to speak or --audio FILE (not both, not neither)")
+        raise InputError("give either text to speak (TEXT, or --text) or --audio FILE (not both, not neither)")
     if transcript is not None and audio is None:
         raise InputError("--transcript goes with --audio; with TEXT the words are already known")
     if text is not None:

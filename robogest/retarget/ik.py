@@ -17,6 +17,7 @@ from robogest.errors import ConfigError
 from robogest.motion.human_motion import HumanMotion
 from robogest.retarget.base import HUMAN_TO_ROBOT, Retargeter, RetargetResult
 from robogest.robot.config import RobotConfig
+from robogest.robot.validate import not_in_model
 
 
 class DirectionIK(Retargeter):
@@ -66,7 +67,10 @@ class DirectionIK(Retargeter):
         for k, j in enumerate(robot.joints):
             jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j.name)
             if jid < 0:
-                raise ConfigError(f"{robot.path}: joints[{k}].name: {j.name!r} is not a joint in {robot.model_path}")
+                names = [m.joint(i).name for i in range(m.njnt)]
+                raise ConfigError(
+                    str(not_in_model(robot.path, f"joints[{k}].name", j.name, "joint", names, robot.model_path))
+                )
             self.qadr[k] = m.jnt_qposadr[jid]
             self.dadr[k] = m.jnt_dofadr[jid]
         self.site_ids: list[tuple[int, int]] = []
@@ -75,7 +79,9 @@ class DirectionIK(Retargeter):
             for s in v.robot:
                 sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s)
                 if sid < 0:
-                    raise ConfigError(f"{robot.path}: retarget[{k}].robot: {s!r} is not a site in {robot.model_path}")
+                    names = [m.site(i).name for i in range(m.nsite)]
+                    problem = not_in_model(robot.path, f"retarget[{k}].robot", s, "site", names, robot.model_path)
+                    raise ConfigError(str(problem))
                 ids.append(sid)
             self.site_ids.append((ids[0], ids[1]))
         self.human_pairs = [v.human for v in robot.retarget]

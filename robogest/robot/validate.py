@@ -205,7 +205,7 @@ def _joint_problems(robot: RobotConfig, m, yml: Path, mjcf: Path, mapping_only: 
     for k, j in enumerate(robot.joints):
         jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j.name)
         if jid < 0:
-            out.append(_not_in_model(yml, f"joints[{k}].name", j.name, "joint", mj_joints, mjcf))
+            out.append(not_in_model(yml, f"joints[{k}].name", j.name, "joint", mj_joints, mjcf))
             continue
         if m.jnt_type[jid] != mujoco.mjtJoint.mjJNT_HINGE:
             out.append(Problem(mjcf, f'<joint name="{j.name}">', "not a hinge joint", "robogest drives hinges only"))
@@ -345,7 +345,7 @@ def _site_problems(robot: RobotConfig, m, yml: Path, mjcf: Path) -> list[Problem
         ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) for s in v.robot]
         for s, sid in zip(v.robot, ids, strict=True):
             if sid < 0:
-                out.append(_not_in_model(yml, f"retarget[{k}].robot", s, "site", sites, mjcf))
+                out.append(not_in_model(yml, f"retarget[{k}].robot", s, "site", sites, mjcf))
         if min(ids) >= 0 and not moved_by(ids[0]) | moved_by(ids[1]):
             out.append(
                 Problem(
@@ -435,8 +435,8 @@ def _reach_problems(robot: RobotConfig, yml: Path) -> list[Problem]:
     ]
 
 
-def _not_in_model(file: Path, key: str, name: str, kind: str, known: list[str], mjcf: Path) -> Problem:
-    """A YAML name the MJCF lacks, with the nearest MJCF name as the likely typo."""
+def not_in_model(file: Path, key: str, name: str, kind: str, known: list[str], mjcf: Path) -> Problem:
+    """A YAML name the MJCF lacks, with the nearest MJCF name as the likely typo (also for the IK's refusal)."""
     near = difflib.get_close_matches(name, known, n=1)
     hint = f"did you mean {near[0]!r}? " if near else ""
     also = " (and rename its bus.servos entry)" if kind == "joint" else ""
@@ -463,7 +463,7 @@ def _load_problems(name_or_path: str | Path, message: str) -> list[Problem]:
             for k, j in enumerate(raw.get("joints") or []):
                 n = j.get("name") if isinstance(j, dict) else None
                 if isinstance(n, str) and n not in names:
-                    out.append(_not_in_model(path, f"joints[{k}].name", n, "joint", names, model))
+                    out.append(not_in_model(path, f"joints[{k}].name", n, "joint", names, model))
     except Exception:  # the load error below already says what is wrong; this is only a better hint
         pass
     # the loader's messages already say how to fix things, on one line: "PATH: key K: message" or "PATH: invalid

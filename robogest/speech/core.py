@@ -40,7 +40,7 @@ def _check_audio(audio: np.ndarray, sr: int, config: SpeechConfig, source: str) 
     if a.shape[0] / sr > config.max_duration_s:
         raise InputError(
             f"{source}: {a.shape[0] / sr:.1f} s is longer than the maximum {config.max_duration_s:.1f} s; "
-            "cut it or raise max_duration_s"
+            "cut it into utterances of at most that length (from Python, SpeechConfig.max_duration_s raises it)"
         )
     a = a.astype(np.float32, copy=False)
     if not np.all(np.isfinite(a)):

@@ -100,7 +100,7 @@ def test_generate_writes_bvh(tmp_path):
 @pytest.mark.parametrize(
     ("argv", "code", "pattern"),
     [
-        (["speak"], 2, "give either TEXT"),
+        (["speak"], 2, "give either text to speak"),
         (["speak", "hi", "--audio", "x.wav"], 2, "not both"),
         (["speak", "--audio", "/nonexistent/talk.wav"], 2, "/nonexistent/talk.wav"),
         (["speak", "hi", "--robot", "nope"], 3, "unknown robot 'nope'; known robots: .*humanoid_xl430"),

@@ -105,7 +105,11 @@ def test_unknown_site_is_a_config_error(make_robot, tmp_path, bad):
     raw["retarget"][0]["robot"][1] = bad
     p = tmp_path / "bad.yaml"
     p.write_text(yaml.safe_dump(raw))
-    with pytest.raises(ConfigError, match=r"bad\.yaml: retarget\[0\]\.robot: 'nope_site' is not a site"):
+    with pytest.raises(ConfigError, match=r"bad\.yaml: key retarget\[0\]\.robot: 'nope_site' is not a site"):
+        DirectionIK(load_robot_config(p))
+    raw["retarget"][0]["robot"][1] = "l_elbow_sit"  # a typo gets the name it is closest to, as validate gives it
+    p.write_text(yaml.safe_dump(raw))
+    with pytest.raises(ConfigError, match=r"'l_elbow_sit' is not a site in .*did you mean 'l_elbow_site'\?"):
         DirectionIK(load_robot_config(p))
 
 
