@@ -91,7 +91,7 @@ def test_malformed_messages_get_errors_and_the_session_keeps_running(server):
         ws.send(b"\x00\x01\x02")  # PCM with no stream open
         assert "stream_start" in _recv(ws, "error")["message"]
         ws.send('{"type": "say"}')  # neither text nor audio: the pipeline's own one-line error
-        assert "either TEXT" in _recv(ws, "error")["message"]
+        assert "either text to speak" in _recv(ws, "error")["message"]
         ws.send('{"type": "status"}')
         status = _recv(ws, "status")
         assert status["open"] and len(status["goal_rad"]) == 11

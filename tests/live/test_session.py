@@ -184,7 +184,7 @@ def test_signal_or_exception_inside_the_session_ends_at_rest_with_torque_off(nam
 
 def test_session_refuses_bad_input_with_one_clear_line():
     with Robot("humanoid_xl430", backend="sim", idle=False, time_scale=FAST, warm_up=False) as robot:
-        with pytest.raises(InputError, match="either TEXT"):
+        with pytest.raises(InputError, match="either text to speak"):
             robot.say()
         with pytest.raises(InputError, match="mono"), robot.stream(16000) as s:
             s.feed(np.zeros((320, 2), np.int16))
