@@ -21,6 +21,8 @@ import csv
 import io
 import os
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -136,26 +138,28 @@ def _write_bag(traj: Trajectory, folder: Path) -> None:
         writer.close()
 
 
+@contextmanager
+def _staged_bag(traj: Trajectory, target: Path, stem: str) -> Iterator[Path]:
+    """The bag folder ``<hidden temporary folder beside target>/<stem>``, written; the temporary folder (and what
+    the caller did not move out of it) goes when the block ends. A disk that fills mid-write is one line."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
+        staged = Path(tmp) / stem
+        try:
+            _write_bag(traj, staged)
+        except OSError as e:
+            raise write_error(target, e) from None
+        yield staged
+
+
 def write_bag_folder(traj: Trajectory, folder: Path) -> None:
     """A rosbag2 folder for ``ros2 bag play FOLDER``; refuses to touch an existing path."""
     export_format(folder)  # refuses an existing path
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix=f".{folder.name}.", dir=folder.parent) as tmp:
-        staged = Path(tmp) / folder.name
-        try:
-            _write_bag(traj, staged)
-        except OSError as e:  # disk full mid-write: the staging folder goes with the context
-            raise write_error(folder, e) from None
+    with _staged_bag(traj, folder, folder.name) as staged:
         staged.rename(folder)  # the finished bag appears at once
 
 
 def write_mcap(traj: Trajectory, path: Path) -> None:
     """The bag as one ``.mcap`` file (self-describing: ``ros2 bag play FILE.mcap`` needs no metadata.yaml)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix=f".{path.name}.", dir=path.parent) as tmp:
-        staged = Path(tmp) / path.stem
-        try:
-            _write_bag(traj, staged)
-        except OSError as e:  # disk full mid-write: the staging folder goes with the context
-            raise write_error(path, e) from None
+    with _staged_bag(traj, path, path.stem) as staged:
         publish(staged / f"{path.stem}.mcap", path)
