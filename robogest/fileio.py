@@ -69,6 +69,25 @@ def check_output_dir(path: str | os.PathLike, what: str = "output folder") -> Pa
     return real
 
 
+def to_jsonable(obj: object) -> object:
+    """Arrays to lists, numpy scalars to Python, NaN/inf to None (strict JSON has no NaN), through dicts and lists."""
+    import math
+
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        return to_jsonable(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
 def check_output_parent(path: str | os.PathLike, what: str = "output") -> None:
     """The folder ``path`` (a file or a folder to be made) would go in is one robogest may write in, or can be
     made: no file stands where a folder must be. InputError naming ``what`` otherwise."""

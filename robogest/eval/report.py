@@ -1,6 +1,6 @@
 """Evaluate one prediction (human motion or robot trajectory) against optional ground truth and speech.
 
-The result is a nested dict of plain numbers and arrays; :func:`to_jsonable` makes it JSON-safe and
+The result is a nested dict of plain numbers and arrays; :func:`robogest.fileio.to_jsonable` makes it JSON-safe and
 :func:`summary_rows` picks the headline numbers for a table.
 """
 
@@ -25,7 +25,7 @@ from robogest.eval.kinematics import (
     wrist_speed_comparison,
 )
 from robogest.eval.robot import joint_jerk, limit_violations, mask_runs, time_to_rest, tracking_error
-from robogest.fileio import atomic_path
+from robogest.fileio import atomic_path, to_jsonable
 
 #: Joints pooled for wrist histograms, wrist peaks and silence behaviour.
 WRIST_NAMES = ("l_wrist", "r_wrist")
@@ -265,21 +265,6 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
         if "stroke_sync" in result["gt_beat_sync"]:
             rows.append(("gt stroke sync (hit rate)", _stroke(result["gt_beat_sync"]["stroke_sync"])))
     return rows
-
-
-def to_jsonable(obj):
-    """Arrays to lists, numpy scalars to Python, NaN/inf to None (strict JSON has no NaN)."""
-    if isinstance(obj, dict):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return to_jsonable(obj.tolist())
-    if isinstance(obj, np.generic):
-        return to_jsonable(obj.item())
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 def write_json_atomic(data: dict, path: str | Path) -> None:

@@ -28,7 +28,7 @@ from robogest.data.datasets import load_dataset, official_split
 from robogest.data.features import FeatureConfig
 from robogest.data.prep import Normalization, make_windows, split_takes
 from robogest.errors import InputError
-from robogest.fileio import atomic_path
+from robogest.fileio import atomic_path, to_jsonable
 from robogest.learn import dist as D
 from robogest.learn import require_torch
 from robogest.learn.checkpoint import load_checkpoint, make_checkpoint, save_checkpoint
@@ -402,7 +402,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
             if improved or not best_path.is_file():
                 save_checkpoint(ckpt, best_path)
             with atomic_path(out / "history.json") as tmp:
-                tmp.write_text(json.dumps(_json_safe(history), indent=1), encoding="utf-8")
+                tmp.write_text(json.dumps(to_jsonable(history), indent=1, allow_nan=False), encoding="utf-8")
         say(
             f"{what}  train {train_loss:.4f}  val {val:.4f}  "
             f"{history[-1]['seconds']:.1f} s{'  *best' if improved else ''}"
@@ -410,18 +410,6 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
     if bar:
         bar.stop()
     return best_path
-
-
-def _json_safe(obj: Any) -> Any:
-    """``obj`` with every NaN or infinite float as None (null): JSON has no NaN, and other readers refuse it (a run
-    with no validation window has ``val_loss`` NaN)."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_json_safe(v) for v in obj]
-    return obj
 
 
 def _windows(spec, mcfg, train_takes, val_takes, norm, seq, stride, v_len, out: Path, info: D.DistInfo):

@@ -185,9 +185,10 @@ def test_every_rank_takes_the_same_number_of_steps():
 
 
 def test_history_is_strict_json():
-    from robogest.learn.trainer import _json_safe
+    """The trainer writes history.json through ``to_jsonable`` (a run with no validation window has val_loss NaN)."""
+    from robogest.fileio import to_jsonable
 
-    out = json.dumps(_json_safe([{"epoch": 1, "val_loss": float("nan"), "parts": {"x": float("inf")}}]))
+    out = json.dumps(to_jsonable([{"epoch": 1, "val_loss": float("nan"), "parts": {"x": float("inf")}}]))
     assert json.loads(out, parse_constant=lambda c: pytest.fail(c)) == [{"epoch": 1, "val_loss": None,
                                                                          "parts": {"x": None}}]  # fmt: skip
 
