@@ -64,14 +64,10 @@ def load_sim_model(robot: RobotConfig) -> SimModel:
         The MJCF does not compile, or does not do what the YAML commands
         (:func:`~robogest.robot.validate.sim_mapping_problems`).
     """
-    path = robot.model_path
-    where = robot.path or robot.name
-    try:
-        model = mujoco.MjModel.from_xml_path(str(path))
-    except ValueError as e:
-        raise ConfigError(f"{where}: key model: MuJoCo cannot load {path}: {' '.join(str(e).split())}") from None
-    from robogest.robot.validate import joint_actuators, sim_mapping_problems, summary
+    from robogest.robot.validate import joint_actuators, load_mjcf, sim_mapping_problems, summary
 
+    where = robot.path or robot.name
+    model = load_mjcf(robot)
     problems = sim_mapping_problems(robot, model)
     if problems:  # the simulator would not do what the YAML commands: say what, on one line
         raise ConfigError(f"{where}: the MuJoCo model does not match the robot YAML: {summary(problems, where)}")

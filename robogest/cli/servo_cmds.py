@@ -249,13 +249,12 @@ def _check_goal_write(robot: Any, args: argparse.Namespace, name: str, addr: int
     import numpy as np
 
     backend, k = _joint_of_servo(robot, args)
-    joints = {s.id: j for j, s in robot.bus.servos.items()}
     ends = backend.rad_to_ticks(robot.q_min_rad)[k], backend.rad_to_ticks(robot.q_max_rad)[k]
     lo, hi = int(min(ends)), int(max(ends))
     if not lo <= args.value <= hi:
         q = float(backend.ticks_to_rad(np.full(len(robot.joints), args.value))[k])
         raise SafetyError(
-            f"servo id {args.id} (joint {joints[args.id]}): goal position {args.value} ({q:+.3f} rad) is outside "
+            f"servo id {args.id} (joint {robot.joint_names[k]}): goal position {args.value} ({q:+.3f} rad) is outside "
             f"robot {robot.name}'s joint limits, ticks [{lo}, {hi}] = [{robot.q_min_rad[k]:+.3f}, "
             f"{robot.q_max_rad[k]:+.3f}] rad; nothing written"
         )

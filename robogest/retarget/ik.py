@@ -17,7 +17,7 @@ from robogest.errors import ConfigError
 from robogest.motion.human_motion import HumanMotion
 from robogest.retarget.base import HUMAN_TO_ROBOT, Retargeter, RetargetResult
 from robogest.robot.config import RobotConfig
-from robogest.robot.validate import not_in_model
+from robogest.robot.validate import load_mjcf, not_in_model
 
 
 class DirectionIK(Retargeter):
@@ -55,11 +55,7 @@ class DirectionIK(Retargeter):
         self.tolerance_rad = tolerance_rad
         self.damping = damping
         self.rest_weight = rest_weight
-        try:
-            self.model = mujoco.MjModel.from_xml_path(str(robot.model_path))
-        except Exception as e:  # mujoco raises ValueError with the parser's message
-            msg = " ".join(str(e).split())  # the parser's message spans lines; errors are one line
-            raise ConfigError(f"{robot.path}: key model: MuJoCo cannot load {robot.model_path}: {msg}") from None
+        self.model = load_mjcf(robot)
         self.data = mujoco.MjData(self.model)
         m = self.model
         self.qadr = np.empty(len(robot.joints), dtype=int)

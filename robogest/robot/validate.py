@@ -179,17 +179,29 @@ def require_hardware_safe(robot: RobotConfig, nothing: str = "nothing moved") ->
         raise ConfigError(f"{where}: not safe to move real servos with ({nothing}): {summary(problems, where)}")
 
 
+def load_mjcf(robot: RobotConfig):
+    """``robot``'s MuJoCo model, compiled (``mujoco.MjModel``); ConfigError on one line naming the file when MuJoCo
+    cannot load it (its parser's message spans lines)."""
+    import mujoco
+
+    try:
+        return mujoco.MjModel.from_xml_path(str(robot.model_path))
+    except ValueError as e:
+        msg = " ".join(str(e).split())
+        raise ConfigError(
+            f"{robot.path or robot.name}: key model: MuJoCo cannot load {robot.model_path}: {msg}"
+        ) from None
+
+
 def hardware_problems(robot: RobotConfig) -> list[Problem]:
     """What must hold before real servos move under ``robot``'s YAML: servo models known, joint limits inside each
     servo's tick range and inside the model's joint ranges (the robot's mechanical range), velocity limits the
     servos can keep. The rest of :func:`validate_robot` concerns the simulation only."""
-    import mujoco
-
     yml = robot.path or Path(f"{robot.name}.yaml")
     out = _servo_problems(robot, yml)
     try:
-        m = mujoco.MjModel.from_xml_path(str(robot.model_path))
-    except ValueError:  # no model to compare with (playing a trajectory needs none); validate reports it
+        m = load_mjcf(robot)
+    except ConfigError:  # no model to compare with (playing a trajectory needs none); validate reports it
         return out
     return out + [p for p in sim_mapping_problems(robot, m) if p.key.startswith("joints[")]
 
