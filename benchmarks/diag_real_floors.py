@@ -81,10 +81,9 @@ def main() -> int:
     st = bg.wrist_stats(_wrists(part), fps, clip.speech.silent_spans)
     print(f"  whole half: H {bg.hellinger_to_ref(st['speeds'], ref):.3f}, speed {st['speed'] / ref['speed']:.2f}x, "
           f"acceleration {st['acc'] / ref['acc']:.2f}x")  # fmt: skip
-    speech_s = clip.speech.duration_s - sum(b - a for a, b in clip.speech.silent_spans)
-    speech_fps = st["speeds_by_frame"].shape[0] / speech_s  # speech frames per second of the clip's speech
+    per_s = st["speeds_by_frame"].shape[0] / clip.speech.duration_s  # speech frames per second of the half
     for length in WINDOWS_S:
-        n = round(length * speech_fps * speech_s / clip.speech.duration_s)  # at this half's share of speech
+        n = round(length * per_s)  # as many speech frames as a window of this length of the half has
         print(f"    {length:4.0f} s of it at a time ({n} speech frames): mean H {bg.real_hellinger_floor(n, ref):.3f}")
 
     print("3. the motion capture on the robots: z kept (the benchmark asks at least 0.8 of the human z)")
