@@ -102,6 +102,9 @@ class JointConfig(_Strict):
     rest_rad: float = 0.0
     #: Jerk limit, rad/s³; default ``max_acceleration_rad_s2 / JERK_RISE_S`` (see :attr:`jerk_rad_s3`).
     max_jerk_rad_s3: float | None = Field(default=None, gt=0)
+    #: A joint that does not gesture (a humanoid's legs, feet, fingers): held at ``rest_rad``. Retargeting, the
+    #: generator, idle motion and the safety stages never move it, and servos are only ever commanded to that angle.
+    held: bool = False
 
     @property
     def jerk_rad_s3(self) -> float:
@@ -245,6 +248,11 @@ class RobotConfig(_Strict):
     @property
     def rest_q_rad(self) -> np.ndarray:
         return np.array([j.rest_rad for j in self.joints])
+
+    @property
+    def held_mask(self) -> np.ndarray:
+        """``(J,)`` bool: joints held at their rest angle (:attr:`JointConfig.held`)."""
+        return np.array([j.held for j in self.joints], dtype=bool)
 
     @property
     def model_path(self) -> Path:
