@@ -23,6 +23,9 @@ if TYPE_CHECKING:
 #: Largest ``.npz`` robogest reads, bytes of array data once loaded (a trajectory of 24 h at 1 kHz for 32 joints
 #: is 0.7 GB): a crafted header cannot make it allocate more than this.
 MAX_NPZ_BYTES = 2 * 1024**3
+#: Largest text file (robot description, calibration, transcript, YAML) robogest reads whole, bytes: far above any
+#: real one (a 54-joint humanoid URDF is ~0.2 MB), far below what would exhaust memory.
+MAX_TEXT_BYTES = 64 * 1024**2
 
 
 def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
@@ -219,6 +222,39 @@ def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str 
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as e:
         raise InputError(f"{label}: not a readable .npz ({type(e).__name__}: {e})") from None
     return out
+
+
+def read_text_capped(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, what: str = "file") -> str:
+    """The UTF-8 text of a regular file of at most ``max_bytes``, checked before reading (``/dev/zero``, a FIFO or
+    a 3 GB sparse file are refused at once instead of read until memory runs out).
+
+    Raises
+    ------
+    InputError
+        Missing, not a regular file, larger than ``max_bytes``, unreadable or not UTF-8; the message names the file.
+    """
+    p = Path(path)
+    try:
+        with open(p, "rb") as f:
+            st = os.fstat(f.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                raise InputError(f"{what} {p}: not a regular file; give the path of a {what} file")
+            if st.st_size > max_bytes:
+                raise InputError(
+                    f"{what} {p}: {st.st_size / 1024**2:.1f} MiB, larger than the {max_bytes / 1024**2:.0f} MiB "
+                    f"robogest reads as one {what}; is it the right file?"
+                )
+            data = f.read(max_bytes + 1)
+    except InputError:
+        raise
+    except OSError as e:
+        raise InputError(f"{what} {p}: cannot read ({e.strerror or e})") from None
+    if len(data) > max_bytes:  # grew while being read
+        raise InputError(f"{what} {p}: larger than the {max_bytes / 1024**2:.0f} MiB robogest reads as one {what}")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise InputError(f"{what} {p}: not UTF-8 text (byte {e.start}); is it a binary file?") from None
 
 
 def load_yaml(text: str) -> object:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from robogest.errors import InputError, RobogestError
-from robogest.fileio import atomic_path, check_output_path, publish, read_npz
+from robogest.fileio import atomic_path, check_output_path, publish, read_npz, read_text_capped
 
 
 def test_atomic_path_publishes_with_ordinary_permissions(tmp_path):
@@ -159,3 +159,22 @@ def test_an_export_below_a_file_is_refused_before_any_work(tmp_path):
     os.symlink(tmp_path / "nowhere", tmp_path / "dangling")
     with pytest.raises(InputError, match=r"--export .*dangling: is a symlink"):
         check_export(tmp_path / "dangling")
+
+
+def test_read_text_capped_refuses_devices_huge_sparse_and_binary_files(tmp_path):
+    p = tmp_path / "a.urdf"
+    p.write_text("<robot/>")
+    assert read_text_capped(p, what="URDF") == "<robot/>"
+    with pytest.raises(InputError, match=r"URDF /dev/zero: not a regular file"):
+        read_text_capped("/dev/zero", what="URDF")
+    big = tmp_path / "big.urdf"
+    with open(big, "wb") as f:
+        f.truncate(3 * 1024**3)  # sparse: 3 GB on paper, nothing on disk
+    with pytest.raises(InputError, match=r"big.urdf: 3072.0 MiB, larger than the 64 MiB"):
+        read_text_capped(big, what="URDF")
+    b = tmp_path / "b.urdf"
+    b.write_bytes(b"<robot>\xff\xfe")
+    with pytest.raises(InputError, match=r"b.urdf: not UTF-8 text \(byte 7\)"):
+        read_text_capped(b, what="URDF")
+    with pytest.raises(InputError, match=r"missing\.urdf: cannot read"):
+        read_text_capped(tmp_path / "missing.urdf", what="URDF")
