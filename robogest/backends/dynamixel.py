@@ -61,6 +61,7 @@ class DynamixelBackend(ServoBackend):
             "min": XReg.MIN_POSITION_LIMIT if p2 else P1Reg.CW_ANGLE_LIMIT,
             "max": XReg.MAX_POSITION_LIMIT if p2 else P1Reg.CCW_ANGLE_LIMIT,
             "speed_cap": XReg.PROFILE_VELOCITY if p2 else P1Reg.MOVING_SPEED,
+            "acceleration": XReg.PROFILE_ACCELERATION if p2 else P1Reg.GOAL_ACCELERATION,  # not on AX-12A
         }
 
     @classmethod
@@ -72,7 +73,8 @@ class DynamixelBackend(ServoBackend):
         if m.protocol != protocol:
             raise ConfigError(f"{m.name} speaks Protocol {m.protocol}, bus says {protocol}")
         return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick,
-                          m.speed_unit_rpm * 2 * math.pi / 60, m.speed_max_units)  # fmt: skip
+                          m.speed_unit_rpm * 2 * math.pi / 60, m.speed_max_units,
+                          m.accel_unit_rad_s2, m.accel_max_units)  # fmt: skip
 
     def _packet_protocol(self) -> float:
         return self.protocol

@@ -6,6 +6,7 @@ resolution, centre tick) live in :data:`MODELS`. Source: ROBOTIS e-manual.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import Enum
 
@@ -107,6 +108,7 @@ class P1Reg(Enum):
     MOVING = (46, 1)
     LOCK = (47, 1)
     PUNCH = (48, 2)
+    GOAL_ACCELERATION = (73, 1)  #: MX-28 only (AX-12A has no acceleration register)
 
     @property
     def addr(self) -> int:
@@ -150,15 +152,24 @@ class DxlModel:
     #: Speed-cap register (X: Profile Velocity; AX/MX: Moving Speed) unit in rev/min, and its largest value.
     speed_unit_rpm: float
     speed_max_units: int
+    #: Acceleration register (X: Profile Acceleration in velocity-based profile mode; MX-28: Goal Acceleration) unit
+    #: in rad/s², and its largest value; 0 for AX-12A, which has none.
+    accel_unit_rad_s2: float = 0.0
+    accel_max_units: int = 0
 
+
+#: X-series Profile Acceleration unit: 214.577 rev/min² (e-manual, velocity-based profile), in rad/s².
+X_ACCEL_UNIT_RAD_S2 = 214.577 * 2 * math.pi / 3600.0
+#: MX-28 (Protocol 1.0) Goal Acceleration unit: 8.583 °/s² (e-manual), in rad/s²; values 0-254.
+MX_ACCEL_UNIT_RAD_S2 = math.radians(8.583)
 
 MODELS: dict[str, DxlModel] = {
     m.name: m
     for m in (
-        DxlModel("XL430-W250", 1060, 2.0, 4096, 2048, 4095, 0.229, 32767),
-        DxlModel("XM430-W350", 1020, 2.0, 4096, 2048, 4095, 0.229, 32767),
-        DxlModel("XL330-M288", 1200, 2.0, 4096, 2048, 4095, 0.229, 32767),
+        DxlModel("XL430-W250", 1060, 2.0, 4096, 2048, 4095, 0.229, 32767, X_ACCEL_UNIT_RAD_S2, 32767),
+        DxlModel("XM430-W350", 1020, 2.0, 4096, 2048, 4095, 0.229, 32767, X_ACCEL_UNIT_RAD_S2, 32767),
+        DxlModel("XL330-M288", 1200, 2.0, 4096, 2048, 4095, 0.229, 32767, X_ACCEL_UNIT_RAD_S2, 32767),
         DxlModel("AX-12A", 12, 1.0, 1024 * 360 / 300, 512, 1023, 0.111, 1023),
-        DxlModel("MX-28", 29, 1.0, 4096, 2048, 4095, 0.114, 1023),
+        DxlModel("MX-28", 29, 1.0, 4096, 2048, 4095, 0.114, 1023, MX_ACCEL_UNIT_RAD_S2, 254),
     )
 }

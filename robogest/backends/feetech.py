@@ -46,6 +46,7 @@ class FeetechBackend(ServoBackend):
             "min": R.MIN_POSITION_LIMIT,
             "max": R.MAX_POSITION_LIMIT,
             "speed_cap": R.GOAL_VELOCITY,
+            "acceleration": R.ACCELERATION,  # written on STS only: SCS models have an accel unit of 0
         }
         self._R = R
 
@@ -57,8 +58,9 @@ class FeetechBackend(ServoBackend):
             raise ConfigError(f"unknown Feetech model {name!r}; known: {', '.join(MODELS)}")
         if m.protocol_end != int(protocol):
             raise ConfigError(f"{m.name} uses protocol {m.protocol_end}, bus says {protocol:g}")
-        return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick,
-                          2 * math.pi / m.ticks_per_rev, m.speed_max_units)  # fmt: skip
+        step_rad = 2 * math.pi / m.ticks_per_rev
+        return ServoModel(m.name, m.number, m.ticks_per_rev, m.centre_tick, m.max_tick, step_rad, m.speed_max_units,
+                          m.accel_unit_steps_s2 * step_rad, m.accel_max_units)  # fmt: skip
 
     def _packet_protocol(self) -> int:
         return self._end

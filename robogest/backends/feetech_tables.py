@@ -132,6 +132,11 @@ class FtModel:
     max_tick: int
     #: Largest value of the Goal Velocity register (the speed cap; its unit is one position step per second).
     speed_max_units: int = 32767
+    #: Unit of the Acceleration register (address 41, RAM) in position steps/s², and its largest value: 100 steps/s²,
+    #: 0-254 on STS/SMS (Feetech ST3215 memory table: "10 corresponds to 1000 steps per second squared"); 0 on SCS,
+    #: where Feetech's own SCSCL library documents no acceleration register (its WritePosEx drops the argument).
+    accel_unit_steps_s2: float = 100.0
+    accel_max_units: int = 254
 
 
 MODELS: dict[str, FtModel] = {
@@ -139,6 +144,6 @@ MODELS: dict[str, FtModel] = {
     for m in (
         FtModel("STS3215", 777, 0, 4096, 2048, 4095),
         FtModel("STS3250", 2825, 0, 4096, 2048, 4095),
-        FtModel("SCS0009", 1284, 1, 1024 * 360 / 300, 512, 1023, 1023),
+        FtModel("SCS0009", 1284, 1, 1024 * 360 / 300, 512, 1023, 1023, 0.0, 0),
     )
 }

@@ -40,6 +40,11 @@ class ServoModel:
     speed_unit_rad_s: float
     #: Largest value that register takes.
     speed_max_units: int
+    #: One unit of the servo's own acceleration register (``REG["acceleration"]``), rad/s² at the servo horn; 0 for a
+    #: model without one (AX-12A, SCS0009), whose acceleration limit is kept by the goal stream alone.
+    accel_unit_rad_s2: float = 0.0
+    #: Largest value that register takes.
+    accel_max_units: int = 0
 
 
 #: The servos' own speed cap, set at connect, is the joint's velocity limit times this: goals already keep to
@@ -47,6 +52,11 @@ class ServoModel:
 #: (at a low control rate it would otherwise move in bursts far above the limit); the margin keeps it from lagging
 #: a goal stream that moves at the limit.
 SPEED_CAP_MARGIN = 1.25
+#: The servos' own acceleration limit, set at connect, is the joint's acceleration limit times at most this (rounded
+#: down to the register's unit): goals keep the limit, but a goal that arrives late, or after one that was lost,
+#: is a bigger step, and without its own limit the servo met it at up to 3.4x the joint's limit on the simulated
+#: bus; a little above the limit, the servo can still follow goals that accelerate at the limit.
+ACCEL_CAP_MARGIN = 1.1
 
 
 class ServoBackend(Backend):
@@ -682,7 +692,7 @@ class ServoBackend(Backend):
             for sid in self.ids:
                 self._budget = self.tick_retry_budget
                 self._volt_limits[int(sid)] = self.voltage_range_v or self._voltage_limits_v(int(sid))
-            self._write_speed_caps()
+            self._write_profiles()
             self.is_connected = True
             self.governor.reset()
             self._budget = self.tick_retry_budget
@@ -703,11 +713,37 @@ class ServoBackend(Backend):
         top = np.array([m.speed_max_units for m in self.models])
         return np.clip(np.ceil(v / unit), 1, top).astype(np.int64)
 
-    def _write_speed_caps(self) -> None:
-        """The servos' own speed limit (profile velocity / moving speed / goal speed; RAM, so at every connect)."""
-        for sid, units in zip(self.ids, self.speed_cap_units(), strict=True):
-            self._budget = self.tick_retry_budget
-            self.write_register(int(sid), self.REG["speed_cap"], int(units))
+    def accel_cap_units(self) -> np.ndarray:
+        """Per servo ``(J,)``: the value for its acceleration register, the largest whole number of the model's units
+        not above the joint's acceleration limit times :data:`ACCEL_CAP_MARGIN` at the servo horn (through the gear),
+        at least 1 (0 means no limit) and at most the register's top; 0 for a model without the register."""
+        a = self.robot.a_max_rad_s2 * np.abs(self._gear) * ACCEL_CAP_MARGIN  # (J,) rad/s² at the horn
+        unit = np.array([m.accel_unit_rad_s2 for m in self.models])
+        top = np.array([m.accel_max_units for m in self.models])
+        has = unit > 0
+        units = np.clip(np.floor(a / np.where(has, unit, 1.0) * (1 + 1e-12)), 1, np.maximum(top, 1))
+        return np.where(has, units, 0).astype(np.int64)
+
+    def _write_profiles(self) -> None:
+        """The servos' own speed cap (profile velocity / moving speed / goal speed) and acceleration limit (profile
+        acceleration / goal acceleration / ACC), each read back: RAM registers, so written at every connect, and a
+        servo that does not keep what was written (a register its firmware lacks) is refused."""
+        caps = [(self.REG["speed_cap"], self.speed_cap_units())]
+        if "acceleration" in self.REG:
+            caps.append((self.REG["acceleration"], self.accel_cap_units()))
+        for k, sid in enumerate(int(i) for i in self.ids):
+            for reg, units in caps:
+                if not units[k]:
+                    continue  # this model has no such register
+                self._budget = self.tick_retry_budget
+                self.write_register(sid, reg, int(units[k]))
+                held = self.read_register(sid, reg)
+                if held != units[k]:
+                    raise BackendError(
+                        f"{self._who(sid)}: register {reg.name} reads back {held} after {units[k]} was written, so "
+                        "the servo would not keep its own speed and acceleration limits; check its model and firmware "
+                        "(`robogest servo scan`)"
+                    )
 
     def _check_limits_fit(self) -> None:
         t_lo = self.rad_to_ticks(self.robot.q_min_rad)

@@ -153,7 +153,7 @@ class VirtualBus:
         self._lock = threading.Lock()
         self._t0 = 0.0
         self._last_step = 0.0
-        self._rec: dict[str, list[Any]] = {"t_s": [], "goal": [], "present": [], "torque": []}
+        self._rec: dict[str, list[Any]] = {"t_s": [], "goal": [], "present": [], "position": [], "torque": []}
         self.errors: list[str] = []
         self.stats = {"packets_in": 0, "packets_out": 0, "bytes_in": 0, "bytes_out": 0, "bad_checksum": 0}
         self._pending_faults = sorted(
@@ -293,6 +293,7 @@ class VirtualBus:
         self._rec["t_s"].append(t)
         self._rec["goal"].append([s.get("goal") for s in self.servos])
         self._rec["present"].append([s.get("present") for s in self.servos])
+        self._rec["position"].append([s.motion.pos for s in self.servos])
         self._rec["torque"].append([s.torque_on for s in self.servos])
 
     # --- answering -------------------------------------------------------------------------------
@@ -588,7 +589,9 @@ class VirtualBus:
             ``t_s (N,)`` seconds since start; ``t0_monotonic_s`` () the bus clock's zero on
             ``time.monotonic()`` (so ``t0_monotonic_s + t_s`` lines samples up with a client's own stamps);
             ``servo_ids (S,)``; ``goal_ticks (N, S)``,
-            ``present_ticks (N, S)`` int64; ``torque_on (N, S)`` bool; ``min_ticks (S,)``,
+            ``present_ticks (N, S)`` int64; ``position_ticks (N, S)`` float64 the motor's position before the
+            Present Position register rounds it (what a servo's own speed and acceleration are measured on);
+            ``torque_on (N, S)`` bool; ``min_ticks (S,)``,
             ``max_ticks (S,)`` the robot's joint limits in ticks; ``errors`` one string per
             injected or detected fault.
         """
@@ -601,6 +604,7 @@ class VirtualBus:
                 "servo_ids": self._ids.copy(),
                 "goal_ticks": np.array(self._rec["goal"], dtype=np.int64).reshape(n, s),
                 "present_ticks": np.array(self._rec["present"], dtype=np.int64).reshape(n, s),
+                "position_ticks": np.array(self._rec["position"], dtype=np.float64).reshape(n, s),
                 "torque_on": np.array(self._rec["torque"], dtype=bool).reshape(n, s),
                 "min_ticks": self._min_ticks.copy(),
                 "max_ticks": self._max_ticks.copy(),

@@ -22,6 +22,7 @@ HW_BITS_P2 = {"voltage": 0x01, "overheating": 0x04, "encoder": 0x08, "shock": 0x
 HW_BITS_P1 = {"voltage": 0x01, "overheating": 0x04, "encoder": 0x02, "shock": 0x08, "overload": 0x20}
 
 _LAG_TAU_S = 0.015  # position-loop time constant
+_PROFILE_PERIOD_S = 0.001  # the firmware updates its profile at 1 kHz
 
 
 @dataclass(frozen=True)
@@ -233,16 +234,10 @@ class SimServo:
                 pa = self.get("profile_acceleration") * spec.acc_unit_ticks_s2
                 if pa > 0:
                     a_lim = pa
-            err = goal - m.cmd
-            v_des = math.copysign(min(v_lim, math.sqrt(2 * a_lim * abs(err))), err)
-            dv = max(-a_lim * dt, min(a_lim * dt, v_des - m.cmd_vel))
-            m.cmd_vel += dv
-            new_cmd = m.cmd + m.cmd_vel * dt
-            if (goal - m.cmd) * (goal - new_cmd) <= 0:  # crossed/reached the goal
-                new_cmd, m.cmd_vel = goal, 0.0
-            m.cmd = new_cmd
             prev = m.pos
-            m.pos += (m.cmd - m.pos) * (1.0 - math.exp(-dt / _LAG_TAU_S))
+            n = max(1, math.ceil(dt / _PROFILE_PERIOD_S - 1e-9))
+            for _ in range(n):  # the firmware's own period, however late the bus advances the clock
+                self._profile_step(goal, v_lim, a_lim, dt / n)
             m.vel = (m.pos - prev) / dt
         else:
             m.vel = 0.0
@@ -253,6 +248,27 @@ class SimServo:
         target_temp += 60.0 if "overheating" in self.hw_faults else 0.0
         m.temp_c += (target_temp - m.temp_c) * (1.0 - math.exp(-dt * th.time_scale / th.tau_s))
         self._sync_feedback()
+
+    def _profile_step(self, goal: float, v_lim: float, a_lim: float, h: float) -> None:
+        """One firmware period ``h`` of the profile (ticks, ticks/s, ticks/s²) and of the position loop behind it.
+
+        Velocity override, as the firmware does when a goal arrives mid-move: the profile's velocity changes by at
+        most ``a_lim * h`` toward the speed from which it can still stop at the goal; a goal it cannot stop for (one
+        that moved back, or one after a lost write) is overshot and come back to, never reached by a jump.
+        """
+        m = self.motion
+        err = goal - m.cmd
+        v_des = math.copysign(min(v_lim, math.sqrt(2 * a_lim * abs(err))), err)
+        v0 = m.cmd_vel
+        v1 = v0 + max(-a_lim * h, min(a_lim * h, v_des - v0))
+        new_cmd = m.cmd + 0.5 * (v0 + v1) * h  # velocity linear within the period: |acceleration| <= a_lim
+        if (goal - m.cmd) * (goal - new_cmd) <= 0 and abs(v0) <= a_lim * h:  # reached, and stops within the period
+            new_cmd, v1 = goal, 0.0
+        # Position loop: a first-order lag, exact for a profile moving linearly over the period.
+        ramp = (new_cmd - m.cmd) / h
+        lag = ramp * _LAG_TAU_S
+        m.pos = new_cmd - lag + (m.pos - m.cmd + lag) * math.exp(-h / _LAG_TAU_S)
+        m.cmd, m.cmd_vel = new_cmd, v1
 
     def _load_permille(self) -> float:
         if not self.torque_on:

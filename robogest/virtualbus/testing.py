@@ -9,6 +9,7 @@ import yaml
 
 from robogest.robot.config import RobotConfig, load_robot_config
 from robogest.trajectory.types import Trajectory
+from robogest.virtualbus.tables import find_model
 
 _MJCF = """<mujoco model="{name}"><worldbody><body name="base">
 {joints}</body></worldbody></mujoco>
@@ -88,3 +89,30 @@ def monologue(robot: RobotConfig, seconds: float, fps: float = 50.0, amp_rad: fl
         q_min_rad=robot.q_min_rad, q_max_rad=robot.q_max_rad, v_max_rad_s=robot.v_max_rad_s,
         a_max_rad_s2=robot.a_max_rad_s2, rest_q_rad=robot.rest_q_rad, silent=np.zeros(len(t), bool),
     )  # fmt: skip
+
+
+def servo_acceleration_ratio(rec: dict[str, np.ndarray], robot: RobotConfig) -> np.ndarray:
+    """``(S,)`` each simulated servo's largest acceleration while its torque is on, at the joint (through the gear),
+    over the joint's ``max_acceleration_rad_s2``; servos in ``rec["servo_ids"]`` order (``rec`` from
+    :meth:`~robogest.virtualbus.VirtualBus.record`).
+
+    Second divided differences of the unrounded ``position_ticks`` over consecutive samples: each is a weighted mean
+    of the acceleration between its three samples, so sampling jitter cannot inflate the figure, and it never
+    exceeds the servo's true peak.
+    """
+    assert robot.bus is not None
+    t, p, on = rec["t_s"], rec["position_ticks"], rec["torque_on"]
+    if len(t) < 3:
+        return np.zeros(len(rec["servo_ids"]))
+    v = np.diff(p, axis=0) / np.diff(t)[:, None]
+    a = np.diff(v, axis=0) / (0.5 * (t[2:] - t[:-2]))[:, None]
+    held = on[:-2] & on[1:-1] & on[2:]
+    joint_of = {sc.id: name for name, sc in robot.bus.servos.items()}
+    out = np.zeros(len(rec["servo_ids"]))
+    for k, sid in enumerate(rec["servo_ids"]):
+        name = joint_of[int(sid)]
+        sc = robot.bus.servos[name]
+        ticks_per_rad = find_model(sc.model).ticks_per_rad() * abs(sc.gear_ratio)
+        peak = np.abs(a[held[:, k], k]).max(initial=0.0) / ticks_per_rad
+        out[k] = peak / robot.a_max_rad_s2[robot.joint_names.index(name)]
+    return out
