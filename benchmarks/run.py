@@ -21,6 +21,7 @@ ORDER = [
     "bench_pipeline.py",
     "bench_safety.py",
     "bench_bus.py",
+    "bench_servo_profile.py",
     "bench_gesticulator.py",
     "bench_s2ag.py",
     "bench_rhythmic.py",

@@ -118,7 +118,7 @@ def _stall_every(backend, n: int, stall_s: float) -> None:
 def test_servos_own_acceleration_stays_within_1_1x_the_limit_when_goals_are_lost_or_late(tmp_path, family, protocol,
                                                                                       fault):  # fmt: skip
     """With 5 % of the instructions lost (sync writes of goals among them) or a 150 ms stall every 0.4 s, the servo
-    met the next goal at 2.4-3.4x the joint's acceleration limit without its own limit (the goals keep the limit,
+    met the next goal at 2.7-3.6x the joint's acceleration limit without its own limit (the goals keep the limit,
     but a late or lost goal is a step the servo covered at once); with it, at most 1.1x."""
     robot = make_robot(tmp_path, family=family, protocol=protocol)
     with VirtualBus(robot, "drop=0.05,seed=2" if fault == "lost" else None) as bus:
