@@ -313,9 +313,9 @@ def _read_value(link: Any, sid: int, name: str) -> int:
 
 
 def _check_robot_write(robot: Any, link: Any, args: argparse.Namespace, name: str) -> None:
-    """With ``--robot``: only :data:`ROBOT_WRITABLE`; a goal goes with the servo's speed cap set from the joint's
-    velocity limit; torque on only with the goal inside the limits, near the present pose (a servo moved by hand
-    while off would otherwise snap back to its old goal at full speed)."""
+    """With ``--robot``: only :data:`ROBOT_WRITABLE`; a goal goes with the servo's speed cap and acceleration limit
+    set from the joint's limits; torque on only with the goal inside the limits, near the present pose (a servo
+    moved by hand while off would otherwise snap back to its old goal at full speed)."""
     if name not in ROBOT_WRITABLE:
         raise SafetyError(
             f"servo id {args.id}: with --robot, servo write takes only {', '.join(sorted(ROBOT_WRITABLE))}; {name} "
@@ -328,10 +328,13 @@ def _check_robot_write(robot: Any, link: Any, args: argparse.Namespace, name: st
 
     require_hardware_safe(robot, "nothing written")  # the limits a goal is checked against must be the robot's
     backend, k = _joint_of_servo(robot, args)
-    if name == "GOAL_POSITION":  # at the joint's speed, as a session moves it, not the servo's full speed
-        cap = link.reg(backend.REG["speed_cap"].name)
-        units = int(backend.speed_cap_units()[k])
-        link.write(args.id, cap, _encode_value(link.protocol, cap.name, cap.value[1], units))
+    if name == "GOAL_POSITION":  # at the joint's speed and acceleration, as a session moves it, not the servo's top
+        caps = [(backend.REG["speed_cap"], backend.speed_cap_units()[k]),
+                (backend.REG["acceleration"], backend.accel_cap_units()[k])]  # fmt: skip
+        for reg, units in caps:
+            if units:  # 0: no acceleration register on this model (AX-12A, SCS0009)
+                cap = link.reg(reg.name)
+                link.write(args.id, cap, _encode_value(link.protocol, cap.name, cap.value[1], int(units)))
         return
     goal, present = (_read_value(link, args.id, r) for r in ("GOAL_POSITION", "PRESENT_POSITION"))
     goal_args = argparse.Namespace(id=args.id, value=goal, port=args.port)

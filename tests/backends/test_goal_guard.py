@@ -419,10 +419,11 @@ def test_servo_write_with_a_robot_guards_torque_speed_and_the_registers_the_yaml
             assert f"with --robot, servo write takes only GOAL_POSITION, LED, TORQUE_ENABLE; {reg}" in (
                 capsys.readouterr().err
             )
-        # a goal goes with the servo's own speed cap, from the joint's velocity limit
+        # a goal goes with the servo's own speed cap and acceleration limit, from the joint's limits
         present = bus.servo(2).get("present")
         assert main([*base, "--register", "GOAL_POSITION", "--value", str(present)]) == 0
         assert bus.servo(2).get("profile_velocity") == be.speed_cap_units()[1] > 0
+        assert bus.servo(2).get("profile_acceleration") == be.accel_cap_units()[1] > 0
         # torque on only with the goal near where the servo is (moved by hand while off, it would snap back)
         assert main([*base, "--register", "TORQUE_ENABLE", "--value", "1"]) == 0
         assert main([*base, "--register", "TORQUE_ENABLE", "--value", "0"]) == 0
