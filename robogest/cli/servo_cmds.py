@@ -106,8 +106,9 @@ def register(subparsers: Any) -> None:
         p.add_argument("--baud", type=checks.baud, default=None, help=f"default: {robot_s}1000000")
         if name == "write":
             p.add_argument("--robot", help="robot name or YAML path: a goal is checked against its joint limits and "
-                           "sent with the joint's speed cap, torque goes on only with the goal near the servo; only "
-                           "GOAL_POSITION, TORQUE_ENABLE and LED are taken (without it: raw registers)")  # fmt: skip
+                           "sent with the joint's speed and acceleration caps, torque goes on only with the goal near "
+                           "the servo; only GOAL_POSITION, TORQUE_ENABLE and LED are taken (without it: raw "
+                           "registers)")  # fmt: skip
         if name != "ping":
             g = p.add_mutually_exclusive_group(required=True)
             g.add_argument("--register", help="register name, e.g. PRESENT_POSITION")
