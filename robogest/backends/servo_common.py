@@ -54,8 +54,8 @@ class ServoModel:
 SPEED_CAP_MARGIN = 1.25
 #: The servos' own acceleration limit, set at connect, is the joint's acceleration limit times at most this (rounded
 #: down to the register's unit): goals keep the limit, but a goal that arrives late, or after one that was lost,
-#: is a bigger step, and without its own limit the servo met it at up to 3.4x the joint's limit on the simulated
-#: bus; a little above the limit, the servo can still follow goals that accelerate at the limit.
+#: is a bigger step, and without its own limit the servo met it at 2.8-3.9x the joint's limit on the simulated bus
+#: (``benchmarks/bench_servo_profile.py``); a little above the limit, it still follows goals accelerating at it.
 ACCEL_CAP_MARGIN = 1.1
 
 
@@ -110,7 +110,8 @@ class ServoBackend(Backend):
     """
 
     family: ClassVar[str] = ""
-    #: role -> register Enum; set by subclasses (goal, present, torque, temperature, voltage, load, min, max).
+    #: role -> register Enum; set by subclasses (goal, present, torque, temperature, voltage, load, min, max,
+    #: speed_cap, acceleration).
     REG: ClassVar[dict[str, Enum]] = {}
 
     def __init__(
@@ -728,9 +729,7 @@ class ServoBackend(Backend):
         """The servos' own speed cap (profile velocity / moving speed / goal speed) and acceleration limit (profile
         acceleration / goal acceleration / ACC), each read back: RAM registers, so written at every connect, and a
         servo that does not keep what was written (a register its firmware lacks) is refused."""
-        caps = [(self.REG["speed_cap"], self.speed_cap_units())]
-        if "acceleration" in self.REG:
-            caps.append((self.REG["acceleration"], self.accel_cap_units()))
+        caps = [(self.REG["speed_cap"], self.speed_cap_units()), (self.REG["acceleration"], self.accel_cap_units())]
         for k, sid in enumerate(int(i) for i in self.ids):
             for reg, units in caps:
                 if not units[k]:
