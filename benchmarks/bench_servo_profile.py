@@ -34,7 +34,7 @@ def run(folder: str, family: str, protocol: float, fps: float, rate_hz: float, o
     when the play did not complete (a servo declared lost on the lossy bus)."""
     robot = make_robot(folder, family=family, protocol=protocol, name=f"{family}bot")
     with VirtualBus(robot, f"{faults},seed={seed}") as bus:
-        backend = get_backend_factory(family)(robot, port=bus.port, health_hz=0)
+        backend = get_backend_factory(family)(robot, port=bus.port, health_hz=0, lost_after_s=1.0)  # motion, not loss
         if not own_limit:  # as before the servos' acceleration registers were written at connect
             backend.accel_cap_units = lambda: np.zeros(len(backend.ids), dtype=np.int64)
         try:

@@ -235,9 +235,12 @@ class SimServo:
                 if pa > 0:
                     a_lim = pa
             prev = m.pos
-            n = max(1, math.ceil(dt / _PROFILE_PERIOD_S - 1e-9))
-            for _ in range(n):  # the firmware's own period, however late the bus advances the clock
-                self._profile_step(goal, v_lim, a_lim, dt / n)
+            if m.cmd == goal and m.cmd_vel == 0.0:  # the profile holds still: only the position loop settles
+                m.pos = goal + (m.pos - goal) * math.exp(-dt / _LAG_TAU_S)
+            else:
+                n = max(1, math.ceil(dt / _PROFILE_PERIOD_S - 1e-9))
+                for _ in range(n):  # the firmware's own period, however late the bus advances the clock
+                    self._profile_step(goal, v_lim, a_lim, dt / n)
             m.vel = (m.pos - prev) / dt
         else:
             m.vel = 0.0
