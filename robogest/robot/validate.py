@@ -178,6 +178,39 @@ def require_hardware_safe(robot: RobotConfig, nothing: str = "nothing moved") ->
         raise ConfigError(f"{where}: not safe to move real servos with ({nothing}): {summary(problems, where)}")
 
 
+#: Problems of :func:`follow_problems` by robot definition and MJCF content (the check retargets a test gesture,
+#: ~0.1 s; a session that opens the same robot again need not repeat it).
+_FOLLOW_CACHE: dict[tuple[str, str], list[Problem]] = {}
+
+
+def follow_problems(robot: RobotConfig) -> list[Problem]:
+    """The retargeting check of :func:`validate_robot` alone (every retarget vector that a joint not held points
+    follows its bone on a test gesture), cached in memory per robot definition and MJCF file content."""
+    import hashlib
+
+    try:
+        digest = hashlib.sha256(robot.model_path.read_bytes()).hexdigest()
+    except OSError:
+        digest = ""  # the loader names the unreadable file
+    key = (robot.model_dump_json() + str(robot.path), digest)
+    if key not in _FOLLOW_CACHE:
+        _FOLLOW_CACHE[key] = _reach_problems(robot, robot.path or Path(f"{robot.name}.yaml"))
+    return _FOLLOW_CACHE[key]
+
+
+def require_followable(robot: RobotConfig) -> None:
+    """Raise :class:`ConfigError` (exit code 3, one line naming the vectors and the fix) when the robot's links
+    cannot follow the human bones it maps (:func:`follow_problems`): speak, play, serve and a live session would
+    otherwise run with joints that never gesture."""
+    problems = follow_problems(robot)
+    if problems:
+        where = robot.path or robot.name
+        raise ConfigError(
+            f"{where}: refused, the robot fails the retargeting check (nothing was generated or moved): "
+            f"{summary(problems, where)}"
+        )
+
+
 def load_mjcf(robot: RobotConfig):
     """``robot``'s MuJoCo model, compiled (``mujoco.MjModel``): the one loader of the IK, the simulator and the
     checks. ConfigError on one line naming the file when MuJoCo cannot load it (its parser's message spans lines).
