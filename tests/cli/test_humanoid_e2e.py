@@ -78,3 +78,28 @@ def test_the_check_is_cached_per_definition_and_model_content(tmp_path):
     robot.model_path.write_text(robot.model_path.read_text() + "\n<!-- edited -->\n")
     follow_problems(robot)
     assert len(_FOLLOW_CACHE) == 2  # an edited model is checked again
+
+
+@pytest.mark.slow
+def test_speak_video_frames_the_upper_body_like_the_framing_camera(tmp_path, capsys):
+    """The CLI's video comes through the framing camera (tests/sim/test_framing.py checks what it frames): its first
+    frame, the robot at rest, is the PNG render of the rest pose at the same size, up to H.264's loss."""
+    av = pytest.importorskip("av")
+    from matplotlib import image as mpimg
+
+    from robogest.backends.render import render_png
+    from robogest.errors import MissingDependencyError
+    from robogest.robot.config import load_robot_config
+
+    path = write_humanoid(tmp_path)
+    try:
+        png = render_png(load_robot_config(path), None, tmp_path / "rest.png", 96, 72)
+    except MissingDependencyError as e:
+        pytest.skip(f"no offscreen GL here: {e}")
+    video = tmp_path / "s.mp4"
+    assert main(["speak", "Hello there.", "--robot", str(path), "--video", str(video), "--video-size", "96x72"]) == 0
+    with av.open(str(video)) as c:
+        first = next(c.decode(video=0)).to_ndarray(format="rgb24").astype(float)
+    rest = mpimg.imread(png)[..., :3] * 255.0
+    assert first.shape == rest.shape == (72, 96, 3)
+    assert np.abs(first - rest).mean() < 8.0  # of 255; another camera differs by tens
