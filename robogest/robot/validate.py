@@ -261,6 +261,14 @@ def _lowest_point_z(m, d, geoms: np.ndarray) -> float:
     return float(low)
 
 
+def _spec_body(spec, m, b: int):
+    """The spec's body for model body ``b`` (same order), named if it was not (contact excludes name bodies)."""
+    body = spec.bodies[b]
+    if not body.name:
+        body.name = f"robogest_body_{b}"
+    return body
+
+
 def weld_floating_base(m, path: Path):
     """``m`` (compiled from ``path``) with each free joint whose body carries hinge joints removed and that body
     welded to the world standing: at the free joint's pose in the ``home`` keyframe if there is one, else at the
@@ -285,10 +293,17 @@ def weld_floating_base(m, path: Path):
         else:
             pos, quat = m.qpos0[qa : qa + 3].copy(), m.qpos0[qa + 3 : qa + 7].copy()
             pos[2] -= _lowest_point_z(m, d, np.flatnonzero(m.body_rootid[m.geom_bodyid] == m.body_rootid[b]))
-        body = spec.body(m.body(b).name) if m.body(b).name else spec.bodies[b]
+        body = _spec_body(spec, m, b)
         joint = next(x for x in body.joints if x.type == mujoco.mjtJoint.mjJNT_FREE)
         spec.delete(joint)
         body.pos, body.quat = pos, quat / np.linalg.norm(quat)
+        # MuJoCo skips contacts between a body and its parent, but not when the parent is welded to the world: the
+        # hips would collide with the pelvis they hang from. Exclude those pairs as the floating model did.
+        base = [c for c in range(m.nbody) if m.body_weldid[c] == b]  # the base and what is bolted to it
+        for c in range(m.nbody):
+            if m.body_weldid[c] != b and m.body_parentid[c] in base:
+                for p in base:
+                    spec.add_exclude(bodyname1=_spec_body(spec, m, p).name, bodyname2=_spec_body(spec, m, c).name)
         drop_q += range(qa, qa + 7)
         drop_v += range(int(m.jnt_dofadr[j]), int(m.jnt_dofadr[j]) + 6)
     for key in spec.keys:
