@@ -64,7 +64,6 @@ def validate(name_or_path: str | Path) -> list[Problem]:
 
 def validate_robot(robot: RobotConfig, check_reach: bool = True) -> list[Problem]:
     """All problems of a loaded robot (empty list: it is consistent and safe to play)."""
-
     yml = robot.path or Path(f"{robot.name}.yaml")
     mjcf = robot.model_path
     try:
