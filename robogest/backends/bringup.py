@@ -326,6 +326,30 @@ class JointServo:
         return {**asdict(self), "status": self.status.split(" ")[0].lower()}
 
 
+def scan_robot(
+    port: str,
+    robot: Any,
+    bauds: list[int],
+    *,
+    max_id: int = 252,
+    per_id: bool = False,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> list[FoundServo]:
+    """What answers on ``port`` at ``robot``'s bus protocol and each of ``bauds``: a :func:`scan`, then each id a
+    joint expects that the scan did not hear is asked once more on its own (a broadcast reply lost on a busy bus
+    would otherwise read as a missing servo)."""
+    proto = protocol_name(robot.bus.family, robot.bus.protocol)
+    found = scan(port, [proto], bauds, max_id=max_id, per_id=per_id, progress=progress)
+    heard = {f.id for f in found}
+    for baud in bauds:
+        with ServoLink(port, proto, baud) as link:
+            for sid in sorted({s.id for s in robot.bus.servos.values()} - heard):
+                with contextlib.suppress(BackendError):
+                    found.append(describe(link, sid))
+                    heard.add(sid)
+    return found
+
+
 def match_robot(robot: Any, found: list[FoundServo]) -> list[JointServo]:
     """Per joint of ``robot`` (its ``bus.servos``, YAML order), the expected id and model against ``found``; then
     every id that answered but no joint has. A model matches by its model number (names differ in spelling)."""

@@ -207,7 +207,7 @@ def _scan_robot(args: argparse.Namespace) -> int:
     """``servo scan --robot``: the robot's bus section against what answers (see the subcommand's description)."""
     import json
 
-    from robogest.backends.bringup import match_robot, protocol_name, scan
+    from robogest.backends.bringup import match_robot, protocol_name, scan_robot
     from robogest.robot.registry import find_robot
 
     robot = find_robot(args.robot)
@@ -220,8 +220,8 @@ def _scan_robot(args: argparse.Namespace) -> int:
         raise InputError(f"{robot.path or robot.name}: bus.port is not set; pass --port PATH")
     proto = protocol_name(robot.bus.family, robot.bus.protocol)
     bauds = args.baud or [robot.bus.baudrate]
-    found = scan(port, [proto], bauds, max_id=args.max_id, per_id=args.per_id,
-                 progress=lambda k, n, what: _status(what, k, n))  # fmt: skip
+    found = scan_robot(port, robot, bauds, max_id=args.max_id, per_id=args.per_id,
+                       progress=lambda k, n, what: _status(what, k, n))  # fmt: skip
     rows = match_robot(robot, found)
     if args.json:
         print(json.dumps([r.as_dict() for r in rows], indent=1))
