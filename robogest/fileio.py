@@ -43,6 +43,7 @@ def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
     text = os.fspath(path)
     if not text:
         raise InputError(f"{what}: empty output path; give a file name")
+    check_name_lengths(text, what)
     real = Path(os.path.realpath(text))  # follows symlinks and '..': a link is written through, not replaced
     via = f" (via the symlink {text})" if os.path.islink(text) else ""
     if real.exists():
@@ -54,10 +55,49 @@ def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
                 f"{what} {text}: is a device, FIFO or socket{via}, not a regular file; robogest writes regular "
                 "files only (it replaces them atomically); give a file path"
             )
-        if not os.access(real, os.W_OK):
+        if not mode & 0o222 or not os.access(real, os.W_OK):  # the mode too: root may write a 0444 file
             raise InputError(f"{what} {text}: the file is read-only{via}; make it writable or choose another path")
+    _check_no_folders_through_a_link(text, real.parent, what)
     _check_writable_folder(real.parent, what, text)
     return real
+
+
+def check_name_lengths(path: str | os.PathLike, what: str = "file") -> None:
+    """Refuse a path with a name longer than its file system allows (255 bytes on most), before any work: the
+    operating system's own error came as a traceback from the first ``stat``."""
+    text = os.fspath(path)
+    folder = Path(os.path.abspath(text)).parent
+    while not folder.exists():
+        folder = folder.parent
+    try:
+        name_max = os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    for part in Path(text).parts:
+        n = len(os.fsencode(part))
+        if n > name_max:
+            short = part if len(part) <= 40 else part[:20] + "..." + part[-12:]
+            raise InputError(
+                f"{what} {short}: the name is {n} bytes long, more than the {name_max} this file system allows; "
+                "choose a shorter name"
+            )
+
+
+def _check_no_folders_through_a_link(text: str, folder: Path, what: str) -> None:
+    """Missing folders of an output are made only where the path, as written, puts them: never through a symlink
+    (a dangling link to ``/nonexistent/dir/x`` made ``/nonexistent/dir``). ``folder`` is the resolved parent."""
+    if folder.exists():
+        return
+    written = Path(os.path.abspath(text)).parent
+    missing: list[str] = []
+    while not written.exists():
+        missing.append(written.name)
+        written = written.parent
+    if folder != Path(os.path.realpath(written)).joinpath(*reversed(missing)):
+        raise InputError(
+            f"{what} {text}: goes through a symlink to {folder}, which does not exist; robogest makes no folder "
+            "through a symlink: create the folder or give another path"
+        )
 
 
 def check_output_dir(path: str | os.PathLike, what: str = "output folder") -> Path:
@@ -130,6 +170,12 @@ def publish(tmp: Path, path: Path) -> None:
     os.replace(tmp, real)
 
 
+def temp_prefix(name: str) -> str:
+    """Prefix of a hidden temporary file beside the output ``name``: short enough that a name at the file system's
+    limit still leaves room for the random part and the suffix."""
+    return f".{name[:64]}."
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
     """A temporary path beside ``path``; on success it replaces ``path``, on any exception it is removed.
@@ -143,7 +189,7 @@ def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
     real = check_output_path(path)
     try:
         real.parent.mkdir(parents=True, exist_ok=True)
-        fd, name = tempfile.mkstemp(prefix=f".{real.name}.", suffix=suffix or ".tmp", dir=real.parent)
+        fd, name = tempfile.mkstemp(prefix=temp_prefix(real.name), suffix=suffix or ".tmp", dir=real.parent)
     except OSError as e:
         raise write_error(path, e) from None
     os.close(fd)
