@@ -233,6 +233,8 @@ CASES = [
          r"--plot o\.npz and --save o\.npz name the same file"),
     Case("speak-text-save-wav-is-plot", ["speak", "Hi", "--save", "o.npz", "--plot", "o.wav"], None, 2,
          r"--save's audio o\.wav and --plot o\.wav name the same file"),
+    Case("speak-text-save-beside-unrelated-wav", ["speak", "Hi", "--save", "o.npz"], wav("o.wav"), 2,
+         r"--save o\.npz: would replace o\.wav, which is not the audio of an earlier --save o\.npz"),
     Case("speak-video-is-robot-yaml", ["speak", "--audio", "a.wav", "--robot", "r.yaml", "--video", "sub/../r.yaml"],
          all_of(wav(), text("r.yaml", "name: x\n")), 2,
          r"--video sub/\.\./r\.yaml is the same file as the input --robot"),
@@ -568,3 +570,12 @@ def test_backend_flags_fail_before_any_work_or_output(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and line in err[0], err
         assert list(tmp_path.iterdir()) == []
+
+
+def test_speak_save_twice_replaces_its_own_audio(tmp_path, monkeypatch, capsys):
+    """The .wav beside --save is refused only when it is not the audio of an earlier --save to the same name."""
+    monkeypatch.chdir(tmp_path)
+    for text in ("Hello.", "Hello there, robot."):
+        assert main(["speak", text, "--save", "o.npz"]) == 0, capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o.npz", "o.wav"]
+    assert sf.info(tmp_path / "o.wav").duration > 1.0  # the second sentence's audio
