@@ -270,6 +270,27 @@ def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str 
     return out
 
 
+def check_input_file(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, what: str = "file") -> None:
+    """Refuse, before reading, a file that is missing, not a regular file (``/dev/zero``, a FIFO) or larger than
+    ``max_bytes`` (a 3 GB sparse file), for readers that open the file themselves. InputError naming the file."""
+    p = Path(path)
+    try:
+        st = os.stat(p)
+    except OSError as e:
+        raise InputError(f"{what} {p}: cannot read ({e.strerror or e})") from None
+    _check_stat(st, p, max_bytes, what)
+
+
+def _check_stat(st: os.stat_result, p: Path, max_bytes: int, what: str) -> None:
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{what} {p}: not a regular file; give the path of a {what} file")
+    if st.st_size > max_bytes:
+        raise InputError(
+            f"{what} {p}: {st.st_size / 1024**2:.1f} MiB, larger than the {max_bytes / 1024**2:.0f} MiB "
+            f"robogest reads as one {what}; is it the right file?"
+        )
+
+
 def read_text_capped(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, what: str = "file") -> str:
     """The UTF-8 text of a regular file of at most ``max_bytes``, checked before reading (``/dev/zero``, a FIFO or
     a 3 GB sparse file are refused at once instead of read until memory runs out).
@@ -280,16 +301,10 @@ def read_text_capped(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, w
         Missing, not a regular file, larger than ``max_bytes``, unreadable or not UTF-8; the message names the file.
     """
     p = Path(path)
+    check_input_file(p, max_bytes, what)  # before opening: opening a FIFO waits for a writer
     try:
         with open(p, "rb") as f:
-            st = os.fstat(f.fileno())
-            if not stat.S_ISREG(st.st_mode):
-                raise InputError(f"{what} {p}: not a regular file; give the path of a {what} file")
-            if st.st_size > max_bytes:
-                raise InputError(
-                    f"{what} {p}: {st.st_size / 1024**2:.1f} MiB, larger than the {max_bytes / 1024**2:.0f} MiB "
-                    f"robogest reads as one {what}; is it the right file?"
-                )
+            _check_stat(os.fstat(f.fileno()), p, max_bytes, what)  # the file opened, should the path have changed
             data = f.read(max_bytes + 1)
     except InputError:
         raise
