@@ -429,6 +429,15 @@ CASES = [
          3, r"r\.yaml: (YAML nested too deeply|not valid YAML)"),
     Case("lerobot-calibration-deep-json", ["robots", "import-lerobot-calibration", "c.json", "--robot", ROBOT],
          text("c.json", "[" * 100_000 + "]" * 100_000), 2, r"c\.json: JSON nested too deeply"),
+    Case("lerobot-calibration-of-so101-for-xl430", ["robots", "import-lerobot-calibration", "c.json", "--robot", ROBOT,
+         "--out", "x.yaml"], text("c.json", '{"shoulder_pan": {"id": 1, "drive_mode": 0, "homing_offset": -1470, '
+         '"range_min": 758, "range_max": 3292}}'), 2,
+         r"c\.json: motors \['shoulder_pan'\] are not joints of humanoid_xl430"),
+    Case("lerobot-calibration-5000-digits", ["robots", "import-lerobot-calibration", "c.json", "--robot", ROBOT],
+         text("c.json", '{"torso_yaw": {"id": ' + "1" * 5000 + "}}"), 2,
+         r"c\.json: not a LeRobot calibration file \(Exceeds the limit"),
+    Case("lerobot-calibration-dev-zero", ["robots", "import-lerobot-calibration", "/dev/zero", "--robot", ROBOT], None,
+         2, r"calibration /dev/zero: not a regular file"),
     Case("audio-rate-absurd", ["analyze", "a.wav"], wav(sr=1000), 2, r"audio a\.wav: sample rate 1000 Hz is outside"),
     # --- checkpoints
     Case("checkpoint-legacy-format", ["speak", "Hi", "--generator", "gesticulator", "--checkpoint", "c.pt"],
