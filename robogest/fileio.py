@@ -315,7 +315,9 @@ def read_text_capped(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, w
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as e:
-        raise InputError(f"{what} {p}: not UTF-8 text (byte {e.start}); is it a binary file?") from None
+        raise InputError(
+            f"{what} {p}: not UTF-8 text (byte {e.start}); save it as UTF-8, or is it a binary file?"
+        ) from None
 
 
 def load_yaml(text: str) -> object:

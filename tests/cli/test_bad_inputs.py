@@ -98,6 +98,17 @@ def text(name: str, content: str) -> Callable[[Path], None]:
     return lambda d: (d / name).write_text(content)
 
 
+def edit(name: str, old: str, new: str) -> Callable[[Path], None]:
+    """Replace ``old`` (which must be there) with ``new`` in the file ``name``."""
+
+    def make(d: Path) -> None:
+        text = (d / name).read_text()
+        assert old in text, old
+        (d / name).write_text(text.replace(old, new))
+
+    return make
+
+
 def sparse(name: str, size: int) -> Callable[[Path], None]:
     def make(d: Path) -> None:
         with open(d / name, "wb") as f:
@@ -438,6 +449,14 @@ CASES = [
          r"c\.json: not a LeRobot calibration file \(Exceeds the limit"),
     Case("lerobot-calibration-dev-zero", ["robots", "import-lerobot-calibration", "/dev/zero", "--robot", ROBOT], None,
          2, r"calibration /dev/zero: not a regular file"),
+    Case("play-gear-ratio-1e-300", ["play", "t.npz", "--robot", f"robots/{ROBOT}.yaml"],
+         all_of(traj(), robot_copy, edit(f"robots/{ROBOT}.yaml", "model: XL430-W250, direction: -1}",
+                                 "model: XL430-W250, direction: -1, gear_ratio: 1.0e-300}")), 3,
+         r"key bus\.servos\.r_elbow: .*gear_ratio = 1e-300 is outside \[0\.01, 100\]"),
+    Case("robot-yaml-dev-zero", ["play", "t.npz", "--robot", "r.yaml"], all_of(traj(), symlink("r.yaml", "/dev/zero")),
+         3, r"robot file r\.yaml: not a regular file"),
+    Case("gesture-file-too-large", ["speak", "Hi", "--gestures", "g.yaml"], sparse("g.yaml", 5 * 1024**2), 3,
+         r"gesture file g\.yaml: 5\.0 MiB, larger than the 4 MiB"),
     Case("audio-rate-absurd", ["analyze", "a.wav"], wav(sr=1000), 2, r"audio a\.wav: sample rate 1000 Hz is outside"),
     # --- checkpoints
     Case("checkpoint-legacy-format", ["speak", "Hi", "--generator", "gesticulator", "--checkpoint", "c.pt"],
@@ -600,3 +619,13 @@ def test_speak_save_twice_replaces_its_own_audio(tmp_path, monkeypatch, capsys):
         assert main(["speak", text, "--save", "o.npz"]) == 0, capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o.npz", "o.wav"]
     assert sf.info(tmp_path / "o.wav").duration > 1.0  # the second sentence's audio
+
+
+def test_robots_validate_refuses_an_implausible_gear_ratio(tmp_path, monkeypatch, capsys):
+    """`gear_ratio: 1.0e-300` passed `robots validate` and the joint never moved (every goal was the zero tick)."""
+    monkeypatch.chdir(tmp_path)
+    robot_copy(tmp_path)
+    edit(f"robots/{ROBOT}.yaml", "model: XL430-W250, direction: -1}",
+         "model: XL430-W250, direction: -1, gear_ratio: 1.0e-300}")(tmp_path)  # fmt: skip
+    assert main(["robots", "validate", f"robots/{ROBOT}.yaml"]) == 3
+    assert "gear_ratio = 1e-300 is outside [0.01, 100]" in capsys.readouterr().out
