@@ -414,6 +414,12 @@ CASES = [
          r"s\.npz: frame rate 1e-09 fps is outside 1\.\.1000"),
     Case("smplx-pickled", ["play", "s.npz", *A],
          lambda d: np.savez(d / "s.npz", poses=np.array([None], dtype=object)), 2, r"holds pickled Python objects"),
+    Case("smplx-string-poses", ["play", "s.npz", *A],
+         lambda d: np.savez(d / "s.npz", poses=np.full((5, 165), "x"), fps=30.0), 2,
+         r"s\.npz: 'poses' holds <U1 values, not numbers; re-export"),
+    Case("smplx-string-trans", ["play", "s.npz", *A],
+         lambda d: np.savez(d / "s.npz", poses=np.zeros((5, 165)), trans=np.full((5, 3), "0.1"), fps=30.0), 2,
+         r"s\.npz: 'trans' holds <U3 values, not numbers"),
     # --- speech inputs
     Case("transcript-deep-json", ["speak", "--audio", "a.wav", "--transcript", "w.json"],
          all_of(wav(), text("w.json", "[" * 100_000 + "]" * 100_000)), 2, r"w\.json: .*nested too deeply|invalid JSON"),
