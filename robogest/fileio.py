@@ -26,6 +26,11 @@ MAX_NPZ_BYTES = 2 * 1024**3
 #: Largest text file (robot description, calibration, transcript, YAML) robogest reads whole, bytes: far above any
 #: real one (a 54-joint humanoid URDF is ~0.2 MB), far below what would exhaust memory.
 MAX_TEXT_BYTES = 64 * 1024**2
+#: Most an ``.npz`` member of over :data:`NPZ_RATIO_FROM_BYTES` may expand when decompressed: recorded numbers
+#: deflate 1-10x; a member expanding more (zeros deflate about 1000x) is a decompression bomb (a 1.5 MB file
+#: allocated 1.5 GiB and played).
+MAX_NPZ_RATIO = 100
+NPZ_RATIO_FROM_BYTES = 1024**2
 
 
 def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
@@ -217,7 +222,8 @@ def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str 
     """Every array of an ``.npz`` (no pickled objects), checked for size before any is allocated.
 
     Each member's header is read first: its declared size must fit the bytes stored for it (a crafted header cannot
-    ask for more memory than the file holds) and all arrays together must fit ``max_bytes``.
+    ask for more memory than the file holds), it may expand at most :data:`MAX_NPZ_RATIO` times from its compressed
+    size (a decompression bomb cannot either), and all arrays together must fit ``max_bytes``.
 
     Raises
     ------
@@ -253,6 +259,12 @@ def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str 
                     raise InputError(
                         f"{label}: array {info.filename[:-4]!r} declares {nbytes} bytes but the file "
                         f"holds {info.file_size}; the file is corrupt or crafted"
+                    )
+                if info.file_size > max(NPZ_RATIO_FROM_BYTES, MAX_NPZ_RATIO * info.compress_size):
+                    raise InputError(
+                        f"{label}: array {info.filename[:-4]!r} expands from {info.compress_size} to "
+                        f"{info.file_size} bytes, more than the {MAX_NPZ_RATIO}x any recorded data compresses; "
+                        "a decompression bomb? Save it uncompressed (np.savez)"
                     )
                 total += nbytes
                 if total > max_bytes:

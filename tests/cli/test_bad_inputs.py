@@ -399,6 +399,9 @@ CASES = [
     Case("traj-limits-shape", ["play", "t.npz", *A], traj(q_min_rad=np.zeros(3)), 2, r"q_min_rad has shape \(3,\)"),
     Case("npz-crafted-header", ["play", "t.npz", *A], npz_declaring("t.npz", (10**11,)), 2,
          r"array 'q_rad' declares 800000000000 bytes but the file holds"),
+    Case("npz-decompression-bomb", ["play", "t.npz", *A],
+         lambda d: np.savez_compressed(d / "t.npz", q_rad=np.zeros((2_000_000, 1))), 2,
+         r"t\.npz: array 'q_rad' expands from \d+ to 16000128 bytes, more than the 100x"),
     Case("npz-not-a-zip", ["play", "t.npz", *A], text("t.npz", "hello"), 2, r"t\.npz: not a readable \.npz"),
     Case("eval-npz-not-a-zip", ["eval", "--pred", "t.npz"], text("t.npz", "hello"), 2, r"not a readable \.npz"),
     # --- motion files
