@@ -638,3 +638,28 @@ def test_robots_validate_refuses_an_implausible_gear_ratio(tmp_path, monkeypatch
          "model: XL430-W250, direction: -1, gear_ratio: 1.0e-300}")(tmp_path)  # fmt: skip
     assert main(["robots", "validate", f"robots/{ROBOT}.yaml"]) == 3
     assert "gear_ratio = 1e-300 is outside [0.01, 100]" in capsys.readouterr().out
+
+
+def test_speak_video_on_a_full_disk_is_one_line_not_a_crash(tmp_path):
+    """`speak --video` on a full disk ended in SIGSEGV: after the first failed write dropped the file, the glide to
+    rest still rendered frames into PyAV's closed container. Run apart: the old code killed the process."""
+    import sys
+
+    mount_tmpfs(tmp_path / "full", "size=64k")
+    try:
+        fill_up(tmp_path / "full")
+        renderer(tmp_path)
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+        proc = subprocess.run(
+            [sys.executable, "-m", "robogest", "speak", "Hello there, I am a robot.", "--video", "full/v.mp4"],
+            capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300,
+        )  # fmt: skip
+        errors = [ln for ln in proc.stderr.splitlines() if "error" in ln or "Traceback" in ln or "Fatal" in ln]
+        assert proc.returncode == 1, proc.stderr
+        assert errors == [
+            "robogest: error: full/v.mp4: cannot write (No space left on device); nothing was written, free space "
+            "or choose another path"
+        ]
+        assert sorted(p.name for p in (tmp_path / "full").iterdir()) == ["filler"]
+    finally:
+        subprocess.run(["umount", "-l", str(tmp_path / "full")], check=False)
