@@ -354,4 +354,7 @@ def load_yaml(text: str) -> object:
         return loader.construct_mapping(node, deep)
 
     _NoDuplicates.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
-    return yaml.load(text, Loader=_NoDuplicates)
+    try:
+        return yaml.load(text, Loader=_NoDuplicates)
+    except ValueError as e:  # an integer of over 4300 digits: Python refuses to convert it (a traceback otherwise)
+        raise yaml.YAMLError(f"a number too long to read ({str(e).split(';')[0]})") from None
