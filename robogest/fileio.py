@@ -72,7 +72,7 @@ def check_name_lengths(path: str | os.PathLike, what: str = "file") -> None:
     operating system's own error came as a traceback from the first ``stat``."""
     text = os.fspath(path)
     folder = Path(os.path.abspath(text)).parent
-    while not folder.exists():
+    while not os.path.isdir(folder):  # isdir, not exists: a too-long name on the way is False, not an OSError
         folder = folder.parent
     try:
         name_max = os.pathconf(folder, "PC_NAME_MAX")

@@ -289,6 +289,8 @@ CASES = [
          all_of(traj(), symlink("out", "gone")), 2, r"--save out/new/x\.npz: goes through a symlink to .*gone/new"),
     Case("play-save-name-too-long", ["play", "t.npz", *A, "--save", "x" * 300 + ".npz"], traj(), 2,
          r"--save x{20}\.\.\.x{8}\.npz: the name is 304 bytes long, more than the 255"),
+    Case("play-save-folder-name-too-long", ["play", "t.npz", *A, "--save", "x" * 300 + "/f.npz"], traj(), 2,
+         r"--save x{20}\.\.\.x{12}: the name is 300 bytes long"),
     Case("play-motion-name-too-long", ["play", "x" * 300 + ".npz", *A], None, 2,
          r"x{30}\.\.\.x{16}\.npz: the file name is too long for this file system"),
     Case("analyze-transcript-name-too-long", ["analyze", "a.wav", "--transcript", "x" * 300 + ".txt"], wav(), 2,
