@@ -44,7 +44,8 @@ def _add_output_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--port", help="serial port for dynamixel/feetech (default: the robot YAML's bus.port)")
     p.add_argument("--baud", type=checks.baud, help="baud rate (default: the robot YAML's bus.baudrate)")
     p.add_argument("--fps", type=checks.rate_hz, default=50.0, help="command rate, 1..1000 Hz (default: %(default)s)")
-    p.add_argument("--save", metavar="FILE.npz", help="write the final command trajectory (and the audio as .wav)")
+    p.add_argument("--save", metavar="FILE.npz", help="write the final command trajectory (and spoken TEXT beside it "
+                   "as FILE.wav, which may replace only an earlier --save's audio)")  # fmt: skip
     p.add_argument(
         "--export",
         metavar="FILE",
