@@ -466,6 +466,8 @@ CASES = [
     Case("lerobot-calibration-5000-digits", ["robots", "import-lerobot-calibration", "c.json", "--robot", ROBOT],
          text("c.json", '{"torso_yaw": {"id": ' + "1" * 5000 + "}}"), 2,
          r"c\.json: not a LeRobot calibration file \(Exceeds the limit"),
+    Case("lerobot-calibration-3GB-sparse", ["robots", "import-lerobot-calibration", "c.json", "--robot", ROBOT],
+         sparse("c.json", 3 * 1024**3), 2, r"calibration c\.json: 3072\.0 MiB, larger than the 1 MiB"),
     Case("lerobot-calibration-dev-zero", ["robots", "import-lerobot-calibration", "/dev/zero", "--robot", ROBOT], None,
          2, r"calibration /dev/zero: not a regular file"),
     Case("play-gear-ratio-1e-300", ["play", "t.npz", "--robot", f"robots/{ROBOT}.yaml"],
