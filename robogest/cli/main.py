@@ -204,7 +204,7 @@ def _run(argv: Sequence[str] | None) -> int:
     except OSError as e:
         if e.errno != errno.ENAMETOOLONG:
             raise
-        name = os.fsdecode(e.filename or "")
+        name = os.fsdecode(e.filename or "a path")
         short = name if len(name) <= 60 else name[:30] + "..." + name[-20:]
         print(f"robogest: error: {short}: the file name is too long for this file system; choose a shorter name",
               file=sys.stderr)  # fmt: skip

@@ -64,11 +64,11 @@ LEROBOT_FAMILIES = {
 
 def family_of(path: str | Path) -> tuple[str, str] | None:
     """``(servo family, folder)`` from the LeRobot type folder ``path`` lies in (``so101_follower``: feetech);
-    None when no folder names a known type."""
-    for folder in Path(path).parent.parts[::-1]:
-        for kind, family in LEROBOT_FAMILIES.items():
-            if folder == kind or folder.startswith(f"{kind}_"):
-                return family, folder
+    None when that folder names no known type."""
+    folder = Path(path).parent.name
+    for kind, family in LEROBOT_FAMILIES.items():
+        if folder == kind or folder.startswith(f"{kind}_"):
+            return family, folder
     return None
 
 
@@ -110,7 +110,7 @@ def _check_matches(calib: dict[str, MotorCalibration], calib_path: str | Path, r
     """Refuse a calibration of another robot: motors not named after this robot's joints, ids other than its
     servos', or a LeRobot folder of the other servo family. (Matched by id, an SO-101's calibration gave six of a
     Dynamixel humanoid's joints its zero offsets, and the copy was "valid".)"""
-    assert robot.bus is not None
+    assert robot.bus is not None  # checked by the caller
     hint = family_of(calib_path)
     if hint is not None and hint[0] != robot.bus.family:
         raise InputError(
