@@ -122,3 +122,13 @@ def test_closed_stderr_is_not_an_error(tmp_path):
     assert proc.returncode == 0, proc.stdout
     assert "sim tracking error" in proc.stdout
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.npz", "s.wav"]
+
+
+def test_closed_stdout_is_not_an_error():
+    """Started with stdout closed (`robogest robots list >&-`) main's first look at sys.stdout (None) was a
+    traceback; the output goes nowhere, as it would to /dev/null."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "robogest", "robots", "list"],
+        stderr=subprocess.PIPE, preexec_fn=lambda: os.close(1), env=_env(), cwd=REPO, timeout=120,
+    )  # fmt: skip
+    assert (proc.returncode, proc.stderr) == (0, b"")
