@@ -10,7 +10,7 @@ import os
 import stat
 import tempfile
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -218,8 +218,11 @@ def npz_keys(path: str | os.PathLike, what: str = "") -> list[str]:
         raise InputError(f"{label}: not a readable .npz ({type(e).__name__}: {e})") from None
 
 
-def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str = "") -> dict[str, np.ndarray]:
-    """Every array of an ``.npz`` (no pickled objects), checked for size before any is allocated.
+def read_npz(
+    path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str = "", keys: Iterable[str] | None = None
+) -> dict[str, np.ndarray]:
+    """Every array of an ``.npz`` (only those named in ``keys``, if given; the others are neither checked nor
+    loaded), no pickled objects, checked for size before any is allocated.
 
     Each member's header is read first: its declared size must fit the bytes stored for it (a crafted header cannot
     ask for more memory than the file holds), it may expand at most :data:`MAX_NPZ_RATIO` times from its compressed
@@ -240,8 +243,9 @@ def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str 
     try:
         with zipfile.ZipFile(p) as zf:
             total = 0
+            wanted = None if keys is None else {f"{k}.npy" for k in keys}
             for info in zf.infolist():
-                if not info.filename.endswith(".npy"):
+                if not info.filename.endswith(".npy") or (wanted is not None and info.filename not in wanted):
                     continue
                 with zf.open(info) as f:
                     version = np.lib.format.read_magic(f)
@@ -274,7 +278,8 @@ def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str 
                     )
         with np.load(p, allow_pickle=False) as z:
             for k in z.files:
-                out[k] = z[k]
+                if keys is None or f"{k}.npy" in wanted:
+                    out[k] = z[k]
     except InputError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as e:

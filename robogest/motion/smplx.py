@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from robogest.errors import InputError
-from robogest.fileio import read_npz
+from robogest.fileio import npz_keys, read_npz
 from robogest.motion import rotations as R
 from robogest.motion.human_motion import HumanMotion, check_take
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
@@ -71,8 +71,8 @@ def _body_rotvecs(data: dict[str, np.ndarray], path: Path) -> np.ndarray:
             raise InputError(f"{path}: 'pose_body' must be (T, 63) matching 'root_orient' (T, 3)")
         return np.concatenate([root, body], axis=1)
     raise InputError(
-        f"{path}: no 'poses' array (keys: {', '.join(sorted(data)) or 'none'}). Pass an SMPL-X/AMASS parameter .npz "
-        "with 'poses' (T, 165) axis-angle, 'trans' (T, 3) and 'mocap_frame_rate'."
+        f"{path}: no 'poses' array (keys: {', '.join(sorted(npz_keys(path))) or 'none'}). Pass an SMPL-X/AMASS "
+        "parameter .npz with 'poses' (T, 165) axis-angle, 'trans' (T, 3) and 'mocap_frame_rate'."
     )
 
 
@@ -97,7 +97,8 @@ def load_smplx(path: str | os.PathLike, fps: float | None = None) -> HumanMotion
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such SMPL-X file. Check the path.")
-    data = read_npz(path, what="SMPL-X")
+    # only what is used: an all-zero expressions or hands array, compressed, would look like a decompression bomb
+    data = read_npz(path, what="SMPL-X", keys=("poses", "root_orient", "pose_body", "trans", *_FPS_KEYS))
     rotvec = _body_rotvecs(data, path)  # (T, 22, 3)
     n_frames = rotvec.shape[0]
     if n_frames == 0:
