@@ -300,7 +300,8 @@ def check_input_file(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, w
 
 def _check_stat(st: os.stat_result, p: Path, max_bytes: int, what: str) -> None:
     if not stat.S_ISREG(st.st_mode):
-        raise InputError(f"{what} {p}: not a regular file; give the path of a {what} file")
+        kind = what if what.endswith("file") else f"{what} file"
+        raise InputError(f"{what} {p}: not a regular file; give the path of a {kind}")
     if st.st_size > max_bytes:
         raise InputError(
             f"{what} {p}: {st.st_size / 1024**2:.1f} MiB, larger than the {max_bytes / 1024**2:.0f} MiB "
