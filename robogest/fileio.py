@@ -10,7 +10,7 @@ import os
 import stat
 import tempfile
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -26,6 +26,11 @@ MAX_NPZ_BYTES = 2 * 1024**3
 #: Largest text file (robot description, calibration, transcript, YAML) robogest reads whole, bytes: far above any
 #: real one (a 54-joint humanoid URDF is ~0.2 MB), far below what would exhaust memory.
 MAX_TEXT_BYTES = 64 * 1024**2
+#: Most an ``.npz`` member of over :data:`NPZ_RATIO_FROM_BYTES` may expand when decompressed: recorded numbers
+#: deflate 1-10x; a member expanding more (zeros deflate about 1000x) is a decompression bomb (a 1.5 MB file
+#: allocated 1.5 GiB and played).
+MAX_NPZ_RATIO = 100
+NPZ_RATIO_FROM_BYTES = 1024**2
 
 
 def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
@@ -43,6 +48,7 @@ def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
     text = os.fspath(path)
     if not text:
         raise InputError(f"{what}: empty output path; give a file name")
+    check_name_lengths(text, what)
     real = Path(os.path.realpath(text))  # follows symlinks and '..': a link is written through, not replaced
     via = f" (via the symlink {text})" if os.path.islink(text) else ""
     if real.exists():
@@ -54,10 +60,49 @@ def check_output_path(path: str | os.PathLike, what: str = "output") -> Path:
                 f"{what} {text}: is a device, FIFO or socket{via}, not a regular file; robogest writes regular "
                 "files only (it replaces them atomically); give a file path"
             )
-        if not os.access(real, os.W_OK):
+        if not mode & 0o222 or not os.access(real, os.W_OK):  # the mode too: root may write a 0444 file
             raise InputError(f"{what} {text}: the file is read-only{via}; make it writable or choose another path")
+    _check_no_folders_through_a_link(text, real.parent, what)
     _check_writable_folder(real.parent, what, text)
     return real
+
+
+def check_name_lengths(path: str | os.PathLike, what: str = "file") -> None:
+    """Refuse a path with a name longer than its file system allows (255 bytes on most), before any work: the
+    operating system's own error came as a traceback from the first ``stat``."""
+    text = os.fspath(path)
+    folder = Path(os.path.abspath(text)).parent
+    while not os.path.isdir(folder):  # isdir, not exists: a too-long name on the way is False, not an OSError
+        folder = folder.parent
+    try:
+        name_max = os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    for part in Path(text).parts:
+        n = len(os.fsencode(part))
+        if n > name_max:
+            short = part if len(part) <= 40 else part[:20] + "..." + part[-12:]
+            raise InputError(
+                f"{what} {short}: the name is {n} bytes long, more than the {name_max} this file system allows; "
+                "choose a shorter name"
+            )
+
+
+def _check_no_folders_through_a_link(text: str, folder: Path, what: str) -> None:
+    """Missing folders of an output are made only where the path, as written, puts them: never through a symlink
+    (a dangling link to ``/nonexistent/dir/x`` made ``/nonexistent/dir``). ``folder`` is the resolved parent."""
+    if folder.exists():
+        return
+    written = Path(os.path.abspath(text)).parent
+    missing: list[str] = []
+    while not written.exists():
+        missing.append(written.name)
+        written = written.parent
+    if folder != Path(os.path.realpath(written)).joinpath(*reversed(missing)):
+        raise InputError(
+            f"{what} {text}: goes through a symlink to {folder}, which does not exist; robogest makes no folder "
+            "through a symlink: create the folder or give another path"
+        )
 
 
 def check_output_dir(path: str | os.PathLike, what: str = "output folder") -> Path:
@@ -130,6 +175,12 @@ def publish(tmp: Path, path: Path) -> None:
     os.replace(tmp, real)
 
 
+def temp_prefix(name: str) -> str:
+    """Prefix of a hidden temporary file beside the output ``name``: short enough that a name at the file system's
+    limit still leaves room for the random part and the suffix."""
+    return f".{name[:64]}."
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
     """A temporary path beside ``path``; on success it replaces ``path``, on any exception it is removed.
@@ -143,7 +194,7 @@ def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
     real = check_output_path(path)
     try:
         real.parent.mkdir(parents=True, exist_ok=True)
-        fd, name = tempfile.mkstemp(prefix=f".{real.name}.", suffix=suffix or ".tmp", dir=real.parent)
+        fd, name = tempfile.mkstemp(prefix=temp_prefix(real.name), suffix=suffix or ".tmp", dir=real.parent)
     except OSError as e:
         raise write_error(path, e) from None
     os.close(fd)
@@ -167,11 +218,15 @@ def npz_keys(path: str | os.PathLike, what: str = "") -> list[str]:
         raise InputError(f"{label}: not a readable .npz ({type(e).__name__}: {e})") from None
 
 
-def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str = "") -> dict[str, np.ndarray]:
-    """Every array of an ``.npz`` (no pickled objects), checked for size before any is allocated.
+def read_npz(
+    path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str = "", keys: Iterable[str] | None = None
+) -> dict[str, np.ndarray]:
+    """Every array of an ``.npz`` (only those named in ``keys``, if given; the others are neither checked nor
+    loaded), no pickled objects, checked for size before any is allocated.
 
     Each member's header is read first: its declared size must fit the bytes stored for it (a crafted header cannot
-    ask for more memory than the file holds) and all arrays together must fit ``max_bytes``.
+    ask for more memory than the file holds), it may expand at most :data:`MAX_NPZ_RATIO` times from its compressed
+    size (a decompression bomb cannot either), and all arrays together must fit ``max_bytes``.
 
     Raises
     ------
@@ -188,8 +243,9 @@ def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str 
     try:
         with zipfile.ZipFile(p) as zf:
             total = 0
+            wanted = None if keys is None else {f"{k}.npy" for k in keys}
             for info in zf.infolist():
-                if not info.filename.endswith(".npy"):
+                if not info.filename.endswith(".npy") or (wanted is not None and info.filename not in wanted):
                     continue
                 with zf.open(info) as f:
                     version = np.lib.format.read_magic(f)
@@ -208,6 +264,12 @@ def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str 
                         f"{label}: array {info.filename[:-4]!r} declares {nbytes} bytes but the file "
                         f"holds {info.file_size}; the file is corrupt or crafted"
                     )
+                if info.file_size > max(NPZ_RATIO_FROM_BYTES, MAX_NPZ_RATIO * info.compress_size):
+                    raise InputError(
+                        f"{label}: array {info.filename[:-4]!r} expands from {info.compress_size} to "
+                        f"{info.file_size} bytes, more than the {MAX_NPZ_RATIO}x any recorded data compresses; "
+                        "a decompression bomb? Save it uncompressed (np.savez)"
+                    )
                 total += nbytes
                 if total > max_bytes:
                     raise InputError(
@@ -216,12 +278,35 @@ def read_npz(path: str | os.PathLike, max_bytes: int = MAX_NPZ_BYTES, what: str 
                     )
         with np.load(p, allow_pickle=False) as z:
             for k in z.files:
-                out[k] = z[k]
+                if keys is None or f"{k}.npy" in wanted:
+                    out[k] = z[k]
     except InputError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as e:
         raise InputError(f"{label}: not a readable .npz ({type(e).__name__}: {e})") from None
     return out
+
+
+def check_input_file(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, what: str = "file") -> None:
+    """Refuse, before reading, a file that is missing, not a regular file (``/dev/zero``, a FIFO) or larger than
+    ``max_bytes`` (a 3 GB sparse file), for readers that open the file themselves. InputError naming the file."""
+    p = Path(path)
+    try:
+        st = os.stat(p)
+    except OSError as e:
+        raise InputError(f"{what} {p}: cannot read ({e.strerror or e})") from None
+    _check_stat(st, p, max_bytes, what)
+
+
+def _check_stat(st: os.stat_result, p: Path, max_bytes: int, what: str) -> None:
+    if not stat.S_ISREG(st.st_mode):
+        kind = what if what.endswith("file") else f"{what} file"
+        raise InputError(f"{what} {p}: not a regular file; give the path of a {kind}")
+    if st.st_size > max_bytes:
+        raise InputError(
+            f"{what} {p}: {st.st_size / 1024**2:.1f} MiB, larger than the {max_bytes / 1024**2:.0f} MiB "
+            f"robogest reads as one {what}; is it the right file?"
+        )
 
 
 def read_text_capped(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, what: str = "file") -> str:
@@ -234,16 +319,10 @@ def read_text_capped(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, w
         Missing, not a regular file, larger than ``max_bytes``, unreadable or not UTF-8; the message names the file.
     """
     p = Path(path)
+    check_input_file(p, max_bytes, what)  # before opening: opening a FIFO waits for a writer
     try:
         with open(p, "rb") as f:
-            st = os.fstat(f.fileno())
-            if not stat.S_ISREG(st.st_mode):
-                raise InputError(f"{what} {p}: not a regular file; give the path of a {what} file")
-            if st.st_size > max_bytes:
-                raise InputError(
-                    f"{what} {p}: {st.st_size / 1024**2:.1f} MiB, larger than the {max_bytes / 1024**2:.0f} MiB "
-                    f"robogest reads as one {what}; is it the right file?"
-                )
+            _check_stat(os.fstat(f.fileno()), p, max_bytes, what)  # the file opened, should the path have changed
             data = f.read(max_bytes + 1)
     except InputError:
         raise
@@ -254,7 +333,9 @@ def read_text_capped(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, w
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as e:
-        raise InputError(f"{what} {p}: not UTF-8 text (byte {e.start}); is it a binary file?") from None
+        raise InputError(
+            f"{what} {p}: not UTF-8 text (byte {e.start}); save it as UTF-8, or is it a binary file?"
+        ) from None
 
 
 def load_yaml(text: str) -> object:
@@ -279,4 +360,7 @@ def load_yaml(text: str) -> object:
         return loader.construct_mapping(node, deep)
 
     _NoDuplicates.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
-    return yaml.load(text, Loader=_NoDuplicates)
+    try:
+        return yaml.load(text, Loader=_NoDuplicates)
+    except ValueError as e:  # an integer of over 4300 digits: Python refuses to convert it (a traceback otherwise)
+        raise yaml.YAMLError(f"a number too long to read ({str(e).split(';')[0]})") from None

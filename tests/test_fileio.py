@@ -178,3 +178,31 @@ def test_read_text_capped_refuses_devices_huge_sparse_and_binary_files(tmp_path)
         read_text_capped(b, what="URDF")
     with pytest.raises(InputError, match=r"missing\.urdf: cannot read"):
         read_text_capped(tmp_path / "missing.urdf", what="URDF")
+
+
+def test_read_npz_refuses_a_decompression_bomb_but_reads_compressed_data(tmp_path, rng):
+    """A 1.5 MB compressed .npz allocated 1.5 GiB: a member may expand at most 100x (recorded numbers: 1-10x)."""
+    np.savez_compressed(tmp_path / "bomb.npz", q=np.zeros((2_000_000, 1)))
+    with pytest.raises(InputError, match=r"bomb\.npz: array 'q' expands from \d+ to 16000128 bytes"):
+        read_npz(tmp_path / "bomb.npz")
+    data = np.round(rng.normal(size=(300_000, 4)), 3)  # 9.6 MB of recorded-like numbers
+    np.savez_compressed(tmp_path / "real.npz", q=data, small=np.zeros(1000))  # 8 kB of zeros: under 1 MiB
+    got = read_npz(tmp_path / "real.npz")
+    np.testing.assert_array_equal(got["q"], data)
+
+
+def test_speech_audio_on_a_full_disk_prints_no_ignored_tracebacks(full_disk, monkeypatch):
+    """Written through a Python file object, libsndfile's I/O callbacks failed on a full disk, and Python printed
+    each failure as an "Exception ignored ... Traceback" block on stderr above the one error line."""
+    import sys
+    from types import SimpleNamespace
+
+    from robogest.speech.export import write_wav
+
+    ignored = []
+    monkeypatch.setattr(sys, "unraisablehook", ignored.append)
+    speech = SimpleNamespace(audio=np.zeros(200_000, np.float32), sr=16000)
+    with pytest.raises(RobogestError, match=r"s\.wav: cannot write \(libsndfile could not write it; the disk may"):
+        write_wav(speech, full_disk / "s.wav")
+    assert ignored == []
+    assert sorted(p.name for p in full_disk.iterdir()) == ["filler"]

@@ -18,8 +18,10 @@ def open_output() -> tuple[Any, str]:
     """``(sounddevice module or None, why not)``: None when not installed, no PortAudio or no output device."""
     try:
         import sounddevice as sd
-    except Exception:  # ImportError, or OSError when PortAudio is missing
+    except ImportError:
         return None, "sounddevice is not installed (pip install 'robogest[audio]')"
+    except OSError as e:  # sounddevice is there but its C library is not: installing sounddevice again won't help
+        return None, f"the PortAudio library is missing ({e}); install it (Debian/Ubuntu: apt install libportaudio2)"
     try:
         sd.query_devices(kind="output")
     except Exception:

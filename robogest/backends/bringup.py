@@ -29,6 +29,9 @@ COMMON_BAUDS = {
     "dxl1": (1_000_000, 57_600, 115_200, 9_600, 2_000_000),
 }
 FAMILY = {"dxl2": ("dynamixel", 2.0), "dxl1": ("dynamixel", 1.0), "sts": ("feetech", 0.0), "scs": ("feetech", 1.0)}
+#: Protocols with one packet format (Dynamixel Protocol 1.0's, which Feetech took over; only the byte order of
+#: values differs): a servo answers a ping in each of them.
+SAME_PACKETS = ("sts", "scs", "dxl1")
 
 
 def protocol_name(family: str, protocol: float) -> str:
@@ -293,7 +296,26 @@ def scan(
                     found.append(describe(link, sid))
     if progress:
         progress(len(tries), len(tries), "done")
-    return found
+    return one_per_servo(found)
+
+
+def one_per_servo(found: list[FoundServo]) -> list[FoundServo]:
+    """Each servo once: one that answered several protocols of :data:`SAME_PACKETS` at one baud rate and id (a
+    Feetech STS servo answers STS, SCS and Dynamixel 1.0 pings: ``scan --all`` listed it three times) is kept under
+    the protocol whose table knows its model number (the first that does, or the first that answered)."""
+    out: list[FoundServo] = []
+    slot: dict[tuple[int, int], int] = {}  # (baud, id) -> index in out
+    for f in found:
+        if f.protocol not in SAME_PACKETS:
+            out.append(f)
+            continue
+        k = slot.get((f.baud, f.id))
+        if k is None:
+            slot[(f.baud, f.id)] = len(out)
+            out.append(f)
+        elif out[k].model == "?" and f.model != "?":
+            out[k] = f
+    return out
 
 
 @dataclass

@@ -30,8 +30,8 @@ from typing import TYPE_CHECKING  # noqa: E402
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from robogest.errors import InputError, MissingDependencyError  # noqa: E402
-from robogest.fileio import atomic_path, check_output_path, publish, write_error  # noqa: E402
+from robogest.errors import InputError, MissingDependencyError, RobogestError  # noqa: E402
+from robogest.fileio import atomic_path, check_output_path, publish, temp_prefix, write_error  # noqa: E402
 
 if TYPE_CHECKING:
     from robogest.robot.config import RobotConfig
@@ -174,12 +174,16 @@ class VideoWriter:
         self.width, self.height = int(width), int(height)
         try:
             self._real.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=self._real.parent, prefix=f".{self._real.stem}.", suffix=".mp4.tmp")
+            fd, tmp = tempfile.mkstemp(dir=self._real.parent, prefix=temp_prefix(self._real.stem), suffix=".mp4.tmp")
         except OSError as e:
             raise write_error(self.path, e) from None
         os.close(fd)
         self._tmp = Path(tmp)
         self.n_frames = 0
+        #: Set once the file is dropped: what to raise on any later call. PyAV's container is closed then, and
+        #: encoding into it crashed the process (SIGSEGV: on a full disk the control loop's glide to rest still
+        #: rendered frames after the first failed write).
+        self._dead: RobogestError | None = None
         try:
             # Our own file object, so that abort() can always close it (PyAV keeps its own handle open when
             # flushing fails, e.g. on a full disk); unbuffered, so a full disk fails in a write, which PyAV
@@ -242,6 +246,7 @@ class VideoWriter:
         """Append one frame ``(H, W, 3)`` uint8; audio follows up to the end of this frame."""
         import av
 
+        self._check_alive()
         if rgb.shape != (self.height, self.width, 3):
             raise ValueError(f"frame shape {rgb.shape} != {(self.height, self.width, 3)}")
         frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(rgb, dtype=np.uint8), format="rgb24")
@@ -253,11 +258,18 @@ class VideoWriter:
             self.n_frames += 1
             self._push_audio(self.n_frames / self.fps)
         except OSError as e:  # disk full, I/O error: one line, and no partial file
-            self.abort()
-            raise write_error(self.path, e) from None
+            error = write_error(self.path, e)
+            self.abort(error)
+            raise error from None
+
+    def _check_alive(self) -> None:
+        """Raise again what ended the writer, if it has ended (never call PyAV after :meth:`abort`)."""
+        if self._dead is not None:
+            raise type(self._dead)(str(self._dead))
 
     def close(self) -> Path:
         """Flush both encoders and move the finished file into place; returns the path."""
+        self._check_alive()
         try:
             self._push_audio(None)
             if self._audio_stream is not None:
@@ -269,15 +281,19 @@ class VideoWriter:
             self._file.close()
             publish(self._tmp, self._real)
         except OSError as e:
-            self.abort()
-            raise write_error(self.path, e) from None
+            error = write_error(self.path, e)
+            self.abort(error)
+            raise error from None
         except BaseException:
             self.abort()
             raise
+        self._dead = RobogestError(f"{self.path}: the video is already closed")
         return self.path
 
-    def abort(self) -> None:
-        """Drop the partial file."""
+    def abort(self, error: RobogestError | None = None) -> None:
+        """Drop the partial file; any later :meth:`add_frame` or :meth:`close` raises ``error`` again."""
+        if self._dead is None:
+            self._dead = error or RobogestError(f"{self.path}: video writing was stopped; nothing was written")
         for part in (getattr(self, "_container", None), getattr(self, "_file", None)):
             with contextlib.suppress(Exception):
                 part.close()

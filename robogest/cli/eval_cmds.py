@@ -149,9 +149,10 @@ def smplx_poses(path: Path) -> tuple[np.ndarray, float] | None:
 
     if path.suffix.lower() != ".npz" or "poses" not in npz_keys(path):
         return None
-    data = read_npz(path, what="SMPL-X")
+    rate_keys = ("mocap_frame_rate", "mocap_framerate", "fps")
+    data = read_npz(path, what="SMPL-X", keys=("poses", *rate_keys))
     poses = np.asarray(data["poses"])
-    rate = next((data[k] for k in ("mocap_frame_rate", "mocap_framerate", "fps") if k in data), None)
+    rate = next((data[k] for k in rate_keys if k in data), None)
     if poses.ndim != 2 or poses.shape[1] != 165 or rate is None:
         return None
     return poses.astype(np.float64), float(np.asarray(rate).reshape(-1)[0])

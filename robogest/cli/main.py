@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import importlib
 import io
 import os
@@ -116,7 +117,26 @@ def _one_line_warnings(show: Callable[..., None]) -> Callable[..., None]:
     return show_warning
 
 
+def _reopen_closed_streams() -> None:
+    """Started with stdout or stderr closed (``2>&-``): point the closed descriptor at /dev/null and give Python a
+    stream for it. Python leaves ``sys.stderr`` None, so the first progress line failed and the command ended with
+    exit 1 before any motion; and a file opened later would take descriptor 2 and receive C libraries' messages."""
+    for fd, name in ((1, "stdout"), (2, "stderr")):
+        try:
+            os.fstat(fd)
+            continue
+        except OSError:
+            pass
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        if devnull != fd:
+            os.dup2(devnull, fd)
+            os.close(devnull)
+        if getattr(sys, name) is None:
+            setattr(sys, name, open(fd, "w", closefd=False))  # noqa: SIM115 - lives as long as the process
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    _reopen_closed_streams()
     previous = warnings.showwarning
     warnings.showwarning = _one_line_warnings(previous)
     if not sys.stdout.isatty() and isinstance(sys.stdout, io.TextIOWrapper):
@@ -181,6 +201,14 @@ def _run(argv: Sequence[str] | None) -> int:
     except MemoryError:
         print("robogest: error: out of memory; the input is too large for this machine", file=sys.stderr)
         return 1
+    except OSError as e:
+        if e.errno != errno.ENAMETOOLONG:
+            raise
+        name = os.fsdecode(e.filename or "a path")
+        short = name if len(name) <= 60 else name[:30] + "..." + name[-20:]
+        print(f"robogest: error: {short}: the file name is too long for this file system; choose a shorter name",
+              file=sys.stderr)  # fmt: skip
+        return 2
 
 
 if __name__ == "__main__":

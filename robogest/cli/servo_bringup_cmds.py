@@ -106,7 +106,7 @@ def calibrate(args: argparse.Namespace) -> int:
     import yaml
 
     from robogest.cli.checks import check_outputs
-    from robogest.fileio import atomic_path
+    from robogest.fileio import atomic_path, read_text_capped
     from robogest.robot.config import load_robot_config
 
     robot, backend = _robot_backend(args.robot, args.port, check_limits=False)
@@ -151,7 +151,7 @@ def calibrate(args: argparse.Namespace) -> int:
     finally:
         backend.shutdown()
 
-    doc = yaml.safe_load(src.read_text())
+    doc = yaml.safe_load(read_text_capped(src, what="robot file"))
     for jd in doc["joints"]:
         if jd["name"] in measured:
             m = measured[jd["name"]]

@@ -44,7 +44,8 @@ def _add_output_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--port", help="serial port for dynamixel/feetech (default: the robot YAML's bus.port)")
     p.add_argument("--baud", type=checks.baud, help="baud rate (default: the robot YAML's bus.baudrate)")
     p.add_argument("--fps", type=checks.rate_hz, default=50.0, help="command rate, 1..1000 Hz (default: %(default)s)")
-    p.add_argument("--save", metavar="FILE.npz", help="write the final command trajectory (and the audio as .wav)")
+    p.add_argument("--save", metavar="FILE.npz", help="write the final command trajectory (and spoken TEXT beside it "
+                   "as FILE.wav, which may replace only an earlier --save's audio)")  # fmt: skip
     p.add_argument(
         "--export",
         metavar="FILE",
@@ -103,7 +104,34 @@ def _check_paths(args: argparse.Namespace, inputs: dict[str, str | None]) -> Non
         outputs["--export"] = args.export
     if args.save and getattr(args, "text", None) is not None:  # synthesized speech is saved beside --save
         outputs["--save's audio"] = str(Path(args.save).with_suffix(".wav"))
+        _check_audio_beside_save(Path(args.save))
     checks.check_outputs(outputs, {**inputs, "--robot": robot_files(args.robot)})
+
+
+def _check_audio_beside_save(save: Path) -> None:
+    """The ``.wav`` that ``--save X.npz`` writes for synthesized speech may replace only the audio of an earlier
+    ``--save X.npz`` (the trajectory ``X.npz`` there names it): an unrelated ``X.wav`` was replaced silently."""
+    import os
+    import zipfile
+
+    from robogest.errors import InputError
+
+    wav = save.with_suffix(".wav")
+    if not os.path.lexists(wav) or not os.path.isfile(wav):  # a folder, FIFO...: check_outputs says why
+        return
+    named = ""
+    try:
+        import numpy as np
+
+        with np.load(save, allow_pickle=False) as z:  # one small member, not the whole file
+            named = str(z["audio_path"]) if "audio_path" in z.files else ""
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        pass
+    if not named or Path(named).name != wav.name:
+        raise InputError(
+            f"--save {save}: would replace {wav}, which is not the audio of an earlier --save {save}; the "
+            "synthesized speech is written beside --save as .wav: move that file or choose another --save name"
+        )
 
 
 def _backend_options(args: argparse.Namespace) -> dict:

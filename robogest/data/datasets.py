@@ -190,12 +190,14 @@ def official_split(root: str | os.PathLike) -> dict[str, str] | None:
         The file exists but has no ``id`` and ``type`` columns.
     """
     import csv
+    import io
+
+    from robogest.fileio import read_text_capped
 
     path = Path(root) / SPLIT_FILE
     if not path.is_file():
         return None
-    with path.open(newline="", encoding="utf-8") as f:
-        rows = list(csv.DictReader(f))
+    rows = list(csv.DictReader(io.StringIO(read_text_capped(path, what="split file"), newline="")))
     if not rows or not {"id", "type"} <= set(rows[0]):
         raise InputError(f"{path}: expected the columns id,type (BEAT2's official split)")
     kinds = {"train": "train", "additional": "train", "val": "val", "test": "test"}

@@ -40,8 +40,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from robogest.errors import ConfigError
-from robogest.fileio import load_yaml
+from robogest.errors import ConfigError, InputError
+from robogest.fileio import load_yaml, read_text_capped
 from robogest.generators.poses import DOF_NAMES, pose
 
 #: Built-in units.
@@ -172,17 +172,18 @@ def parse_unit(name: str, d: object, path: str) -> GestureUnit:
     return u
 
 
+#: Largest gesture file read, bytes (the built-in repertoire is about 20 kB).
+MAX_GESTURE_FILE_BYTES = 4 * 1024**2
+
 _HEAD_IDX = [DOF_NAMES.index(n) for n in ("head_pitch", "head_yaw", "head_roll")]
 
 
 def load_file(path: Path) -> dict[str, GestureUnit]:
     """Units of one YAML file."""
     try:
-        data = load_yaml(path.read_text(encoding="utf-8"))
-    except OSError as e:
-        raise ConfigError(f"{path}: cannot read ({e})") from None
-    except UnicodeDecodeError as e:
-        raise ConfigError(f"{path}: not UTF-8 text (byte {e.start}); save it as UTF-8") from None
+        data = load_yaml(read_text_capped(path, MAX_GESTURE_FILE_BYTES, "gesture file"))
+    except InputError as e:  # missing, not a regular file, too large, not UTF-8
+        raise ConfigError(str(e)) from None
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""

@@ -285,7 +285,16 @@ class Robot:
 
     # --- life cycle --------------------------------------------------------------------------------
     def open(self) -> Robot:
-        """Connect, hold the present pose with torque on, start the control loop (and the idle motion)."""
+        """Connect, hold the present pose with torque on, start the control loop (and the idle motion).
+
+        Raises InputError on a session that was closed: it silently did nothing, and every ``say`` then failed as
+        "not open". Make a new :class:`Robot` to connect again.
+        """
+        if self._opened and self.loop is not None and self.loop._closed:
+            raise InputError(
+                f"this {self.config.name} session was closed; a closed session is not opened again: make a new "
+                "Robot(...) to connect again"
+            )
         if self._opened:
             return self
         from robogest.backends import get_backend_factory

@@ -83,6 +83,15 @@ def _float(tok: str, path: Path, line_no: int) -> float:
         raise _err(path, f"line {line_no}: {tok!r} is not a number", "Repair or re-export the file") from None
 
 
+def _count(tok: str, path: Path, line_no: int) -> int:
+    """A whole number >= 0 (a frame or channel count); a huge or fractional one is one line, not an OverflowError."""
+    v = _float(tok, path, line_no)
+    if not (0 <= v < 2**53 and v == int(v)):
+        shown = tok if len(tok) <= 20 else f"{tok[:10]}...({len(tok)} characters)"
+        raise _err(path, f"line {line_no}: {shown} is not a count", "Repair or re-export the file")
+    return int(v)
+
+
 def _parse_hierarchy(lines: list[str], path: Path) -> tuple[list[str], list[int], list, list[list[str]], dict, int]:
     """Joint names, parents, file-unit offsets, channel names, end sites, and the index of the ``MOTION`` line."""
     first = next((ln.strip() for ln in lines if ln.strip()), "")
@@ -136,7 +145,7 @@ def _parse_hierarchy(lines: list[str], path: Path) -> tuple[list[str], list[int]
         elif kw == "CHANNELS":
             if len(toks) < 2 or not stack or stack[-1] == "end":
                 raise _err(path, f"line {ln}: CHANNELS outside a joint", "Repair or re-export the file")
-            n = int(_float(toks[1], path, ln))
+            n = _count(toks[1], path, ln)
             chans = [c.capitalize() for c in toks[2 : 2 + n]]
             bad = [c for c in chans if len(c) != 9 or c[0] not in _AXES or c[1:] not in ("position", "rotation")]
             if len(chans) != n or bad:
@@ -180,7 +189,7 @@ def _parse_motion(lines: list[str], start: int, n_channels: int, n_joints: int, 
         i += 1
     if len(header) < 2:
         raise _err(path, "MOTION section lacks 'Frames:' or 'Frame Time:'", "The file is truncated; re-export it")
-    n_frames = int(_float(header["frames"][0], path, header["frames"][1]))
+    n_frames = _count(header["frames"][0], path, header["frames"][1])
     frame_time = _float(header["frame time"][0], path, header["frame time"][1])
     lo, hi = FRAME_TIME_RANGE_S
     if not lo <= frame_time <= hi:

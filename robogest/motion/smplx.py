@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from robogest.errors import InputError
-from robogest.fileio import read_npz
+from robogest.fileio import npz_keys, read_npz
 from robogest.motion import rotations as R
 from robogest.motion.human_motion import HumanMotion, check_take
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
@@ -44,10 +44,19 @@ SMPLX_PELVIS_HEIGHT_M = 0.94
 _FPS_KEYS = ("mocap_frame_rate", "mocap_framerate", "fps", "frame_rate")
 
 
+def _numbers(data: dict[str, np.ndarray], key: str, path: Path) -> np.ndarray:
+    """``data[key]`` as float64, or an InputError naming the key when it holds text (or anything but numbers):
+    string-typed poses were a traceback, and text such as ``"0.1"`` would have been read as numbers unseen."""
+    a = np.asarray(data[key])
+    if a.dtype.kind not in "iuf":
+        raise InputError(f"{path}: '{key}' holds {a.dtype} values, not numbers; re-export the SMPL-X parameters")
+    return a.astype(np.float64)
+
+
 def _body_rotvecs(data: dict[str, np.ndarray], path: Path) -> np.ndarray:
     """Axis-angle ``(T, 22, 3)`` radians for the 22 body joints from ``poses`` or AMASS-style split keys."""
     if "poses" in data:
-        poses = np.asarray(data["poses"], dtype=np.float64)
+        poses = _numbers(data, "poses", path)
         if poses.ndim != 2 or poses.shape[1] % 3 or poses.shape[1] < 66:
             raise InputError(
                 f"{path}: 'poses' must be (T, 3*J) axis-angle with J >= 22 joints (SMPL-X: 165), "
@@ -55,15 +64,15 @@ def _body_rotvecs(data: dict[str, np.ndarray], path: Path) -> np.ndarray:
             )
         return poses.reshape(poses.shape[0], poses.shape[1] // 3, 3)[:, :22]  # (T, J, 3) -> first 22 body joints
     if "root_orient" in data and "pose_body" in data:
-        root = np.asarray(data["root_orient"], dtype=np.float64).reshape(-1, 1, 3)  # (T, 1, 3)
-        body = np.asarray(data["pose_body"], dtype=np.float64)
+        root = _numbers(data, "root_orient", path).reshape(-1, 1, 3)  # (T, 1, 3)
+        body = _numbers(data, "pose_body", path)
         body = body.reshape(body.shape[0], -1, 3)[:, :21] if body.size else np.zeros((0, 21, 3))  # (T, 21, 3)
         if body.shape[1] != 21 or body.shape[0] != root.shape[0]:
             raise InputError(f"{path}: 'pose_body' must be (T, 63) matching 'root_orient' (T, 3)")
         return np.concatenate([root, body], axis=1)
     raise InputError(
-        f"{path}: no 'poses' array (keys: {', '.join(sorted(data)) or 'none'}). Pass an SMPL-X/AMASS parameter .npz "
-        "with 'poses' (T, 165) axis-angle, 'trans' (T, 3) and 'mocap_frame_rate'."
+        f"{path}: no 'poses' array (keys: {', '.join(sorted(npz_keys(path))) or 'none'}). Pass an SMPL-X/AMASS "
+        "parameter .npz with 'poses' (T, 165) axis-angle, 'trans' (T, 3) and 'mocap_frame_rate'."
     )
 
 
@@ -88,7 +97,8 @@ def load_smplx(path: str | os.PathLike, fps: float | None = None) -> HumanMotion
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such SMPL-X file. Check the path.")
-    data = read_npz(path, what="SMPL-X")
+    # only what is used: an all-zero expressions or hands array, compressed, would look like a decompression bomb
+    data = read_npz(path, what="SMPL-X", keys=("poses", "root_orient", "pose_body", "trans", *_FPS_KEYS))
     rotvec = _body_rotvecs(data, path)  # (T, 22, 3)
     n_frames = rotvec.shape[0]
     if n_frames == 0:
@@ -98,11 +108,11 @@ def load_smplx(path: str | os.PathLike, fps: float | None = None) -> HumanMotion
         if key is None:
             raise InputError(f"{path}: no frame rate ({' / '.join(_FPS_KEYS)}). Pass fps= explicitly.")
         try:
-            fps = float(np.asarray(data[key]).reshape(-1)[0])
-        except (TypeError, ValueError, IndexError):
-            raise InputError(f"{path}: {key} is not a number") from None
+            fps = float(_numbers(data, key, path).reshape(-1)[0])
+        except IndexError:
+            raise InputError(f"{path}: {key} is empty; it must be the frame rate") from None
     check_take(n_frames, fps, str(path))
-    trans = np.asarray(data.get("trans", np.zeros((n_frames, 3))), dtype=np.float64)
+    trans = _numbers(data, "trans", path) if "trans" in data else np.zeros((n_frames, 3))
     if trans.shape != (n_frames, 3):
         raise InputError(f"{path}: 'trans' must be ({n_frames}, 3), got {trans.shape}")
     if not (np.isfinite(rotvec).all() and np.isfinite(trans).all()):

@@ -15,8 +15,8 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
-from robogest.errors import ConfigError
-from robogest.fileio import load_yaml
+from robogest.errors import ConfigError, InputError
+from robogest.fileio import load_yaml, read_text_capped
 
 #: Human joints (canonical skeleton names) a retargeting vector may start or end at.
 HUMAN_POINTS = (
@@ -33,6 +33,13 @@ JERK_RISE_S = 0.05
 PLAUSIBLE_VELOCITY_RAD_S = (0.01, 100.0)
 PLAUSIBLE_ACCELERATION_RAD_S2 = (0.05, 1e4)
 PLAUSIBLE_JERK_RAD_S3 = (0.5, 1e7)
+#: Gearing between servo and joint a robot can plausibly have: beyond it a value is a typo (``gear_ratio: 1.0e-300``
+#: passed validation and the joint never moved: every goal rounded to the servo's zero tick).
+PLAUSIBLE_GEAR_RATIO = (0.01, 100.0)
+#: A servo's zero offset is an angle of the servo shaft: within one turn either way.
+MAX_ZERO_OFFSET_RAD = 2 * math.pi
+#: Serial baud rates the supported adapters can run (the CLI's ``--baud`` takes the same).
+PLAUSIBLE_BAUD = (300, 20_000_000)
 
 
 def _scalar_types(annotation: object) -> set[type]:
@@ -158,13 +165,28 @@ class ServoConfig(_Strict):
     direction: Literal[1, -1] = 1
     gear_ratio: float = Field(default=1.0, gt=0)
 
+    @model_validator(mode="after")
+    def _check(self) -> ServoConfig:
+        lo, hi = PLAUSIBLE_GEAR_RATIO
+        if not lo <= self.gear_ratio <= hi:
+            raise ValueError(
+                f"gear_ratio = {self.gear_ratio:g} is outside [{lo:g}, {hi:g}], what a servo's gearing can be; "
+                "write servo turns per joint turn (1.0 for a direct drive)"
+            )
+        if not abs(self.zero_offset_rad) <= MAX_ZERO_OFFSET_RAD:
+            raise ValueError(
+                f"zero_offset_rad = {self.zero_offset_rad:g} is more than one turn ({MAX_ZERO_OFFSET_RAD:.4f} rad) "
+                "either way; check the units are radians"
+            )
+        return self
+
 
 class BusConfig(_Strict):
     """Optional hardware section: servo family, protocol and per-joint servos."""
 
     family: Literal["dynamixel", "feetech"]
     protocol: float = 2.0
-    baudrate: int = Field(default=1_000_000, gt=0)
+    baudrate: int = Field(default=1_000_000, ge=PLAUSIBLE_BAUD[0], le=PLAUSIBLE_BAUD[1])
     port: str | None = None
     servos: dict[str, ServoConfig]
 
@@ -271,11 +293,9 @@ def load_robot_config(path: str | Path) -> RobotConfig:
     """Read and validate one robot YAML; every problem becomes a :class:`ConfigError` naming file and key."""
     path = Path(path)
     try:
-        raw = load_yaml(path.read_text())
-    except OSError as e:
-        raise ConfigError(f"{path}: cannot read robot file ({e.strerror})") from None
-    except UnicodeDecodeError as e:
-        raise ConfigError(f"{path}: not UTF-8 text (byte {e.start}); save it as UTF-8") from None
+        raw = load_yaml(read_text_capped(path, what="robot file"))
+    except InputError as e:  # missing, not a regular file, too large, not UTF-8: a bad robot file (exit 3)
+        raise ConfigError(str(e)) from None
     except yaml.YAMLError as e:
         raise ConfigError(f"{path}: not valid YAML: {' '.join(str(e).split())}") from None
     except RecursionError:

@@ -17,6 +17,9 @@ applied again), so for a robot whose joint zero and signs are LeRobot's (the shi
 - joint limits = the recorded range, ``direction * (range - mid) * 2 pi / ticks_per_rev / gear_ratio``, intersected
   with the YAML's limits (a calibration never widens a limit beyond the model's).
 
+Motors are matched to the robot's joints by name, and each must have its joint's servo id: a calibration of another
+robot (or of a LeRobot type with the other servo family, told by the folder it lies in) is refused, not matched.
+
 robogest uses the model's ticks per revolution (4096 for an STS3215), LeRobot ``resolution - 1`` (4095): 0.02 %.
 """
 
@@ -31,7 +34,7 @@ from pathlib import Path
 import yaml
 
 from robogest.errors import ConfigError, InputError
-from robogest.fileio import atomic_path
+from robogest.fileio import atomic_path, read_text_capped
 from robogest.robot.config import RobotConfig, load_robot_config
 
 _FIELDS = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
@@ -48,17 +51,39 @@ class MotorCalibration:
     range_max: int
 
 
+#: Largest calibration file read, bytes (one is about 1 kB per motor).
+MAX_CALIBRATION_BYTES = 1024**2
+
+#: The servo family of each LeRobot robot or teleoperator type, as its calibration folder is named
+#: (``calibration/robots/so101_follower/``): a calibration under one of these folders is for that family only.
+LEROBOT_FAMILIES = {
+    "so100": "feetech", "so101": "feetech", "bi_so100": "feetech", "lekiwi": "feetech", "hope_jr": "feetech",
+    "homunculus": "feetech", "koch": "dynamixel", "widowx": "dynamixel", "viperx": "dynamixel",
+}  # fmt: skip
+
+
+def family_of(path: str | Path) -> tuple[str, str] | None:
+    """``(servo family, folder)`` from the LeRobot type folder ``path`` lies in (``so101_follower``: feetech);
+    None when that folder names no known type."""
+    folder = Path(path).parent.name
+    for kind, family in LEROBOT_FAMILIES.items():
+        if folder == kind or folder.startswith(f"{kind}_"):
+            return family, folder
+    return None
+
+
 def read_calibration(path: str | Path) -> dict[str, MotorCalibration]:
     """Motor name -> calibration; InputError naming the file and motor for anything that is not LeRobot's format."""
     path = Path(path)
+    text = read_text_capped(path, MAX_CALIBRATION_BYTES, "calibration")
     try:
-        raw = json.loads(path.read_text())
-    except OSError as e:
-        raise InputError(f"{path}: cannot read the calibration file ({e.strerror})") from None
+        raw = json.loads(text)
     except json.JSONDecodeError as e:
         raise InputError(f"{path}: not JSON ({e.msg} at line {e.lineno}); pass a LeRobot calibration .json") from None
     except RecursionError:
         raise InputError(f"{path}: JSON nested too deeply to be a LeRobot calibration file") from None
+    except ValueError as e:  # an integer of over 4300 digits
+        raise InputError(f"{path}: not a LeRobot calibration file ({e})") from None
     if not isinstance(raw, dict) or not raw:
         raise InputError(f"{path}: expected {{motor name: {{{', '.join(_FIELDS)}}}}} as LeRobot writes it")
     out = {}
@@ -79,6 +104,33 @@ def read_calibration(path: str | Path) -> dict[str, MotorCalibration]:
             raise InputError(f"{path}: motor {motor!r}: drive_mode {cal.drive_mode} is not 0 or 1")
         out[str(motor)] = cal
     return out
+
+
+def _check_matches(calib: dict[str, MotorCalibration], calib_path: str | Path, robot: RobotConfig) -> None:
+    """Refuse a calibration of another robot: motors not named after this robot's joints, ids other than its
+    servos', or a LeRobot folder of the other servo family. (Matched by id, an SO-101's calibration gave six of a
+    Dynamixel humanoid's joints its zero offsets, and the copy was "valid".)"""
+    assert robot.bus is not None  # checked by the caller
+    hint = family_of(calib_path)
+    if hint is not None and hint[0] != robot.bus.family:
+        raise InputError(
+            f"{calib_path}: a calibration of a {hint[1]} ({hint[0]} servos), not of {robot.name} "
+            f"({robot.bus.family} servos); pass this robot's calibration; nothing written"
+        )
+    strangers = [m for m in calib if m not in robot.bus.servos]
+    if strangers:
+        raise InputError(
+            f"{calib_path}: motors {strangers} are not joints of {robot.name} (its joints: "
+            f"{', '.join(robot.joint_names)}); a calibration of another robot? Motors are matched to joints by "
+            "name; nothing written"
+        )
+    moved = [f"{m} (id {c.id}; {robot.name}: id {robot.bus.servos[m].id})" for m, c in calib.items()
+             if c.id != robot.bus.servos[m].id]  # fmt: skip
+    if moved:
+        raise InputError(
+            f"{calib_path}: motors {', '.join(moved)} have other servo ids than the robot file gives them; a "
+            "calibration of another arm? Fix the ids in the robot file's bus.servos, or recalibrate; nothing written"
+        )
 
 
 @dataclass
@@ -103,31 +155,21 @@ def import_lerobot_calibration(
     src = robot.path
     if src is None or robot.bus is None:
         raise ConfigError(f"robot {robot.name!r} has no bus section; a calibration maps servos, add bus: first")
+    _check_matches(calib, calib_path, robot)
     out = Path(out) if out is not None else src.with_name(f"{src.stem}_calibrated.yaml")
     if out.resolve() == src.resolve():
         raise InputError(f"--out {out} is the robot's own YAML; write the calibrated copy elsewhere")
     if out.exists() and not overwrite:
         raise InputError(f"{out} exists; choose another --out or pass --force to overwrite it")
-    raw = yaml.safe_load(src.read_text())
-    by_id = {c.id: name for name, c in calib.items()}
+    raw = yaml.safe_load(read_text_capped(src, what="robot file"))
     lookup = getattr(get_backend_factory(robot.bus.family), "lookup_model", None)
     changes: list[str] = []
-    unused = set(calib)
-    used: dict[str, str] = {}  # motor -> the joint it calibrates
     for k, j in enumerate(robot.joints):
         servo = robot.bus.servos[j.name]
-        motor = j.name if j.name in calib else by_id.get(servo.id)
-        if motor is None:
-            changes.append(f"{j.name}: not in the calibration file (no motor of that name or id {servo.id}); kept")
+        if j.name not in calib:
+            changes.append(f"{j.name}: not in the calibration file; kept")
             continue
-        if motor in used:
-            raise InputError(
-                f"{calib_path}: motor {motor!r} matches both joint {used[motor]!r} (by name or id) and joint "
-                f"{j.name!r}; rename the motors after the robot's joints; nothing written"
-            )
-        used[motor] = j.name
-        unused.discard(motor)
-        c = calib[motor]
+        motor, c = j.name, calib[j.name]
         model = lookup(servo.model, robot.bus.protocol) if lookup else None
         tpr, centre = (model.ticks_per_rev, model.centre_tick) if model else (4096, 2048)
         if c.range_max > (model.max_tick if model else 4095):
@@ -150,9 +192,6 @@ def import_lerobot_calibration(
         entry = raw["bus"]["servos"][j.name]
         entry["zero_offset_rad"] = round(zero, 6)
         entry["direction"] = direction
-        if c.id != servo.id:
-            entry["id"] = c.id
-            changes.append(f"{j.name}: servo id {servo.id} -> {c.id} (the calibration file's)")
         raw["joints"][k]["lower_rad"] = round(lower, 6)
         raw["joints"][k]["upper_rad"] = round(upper, 6)
         narrowed = [
@@ -163,19 +202,6 @@ def import_lerobot_calibration(
         changes.append(
             f"{j.name}: motor {motor!r}, range middle tick {mid:g}: zero_offset_rad {zero:+.4f}, direction "
             f"{direction:+d}" + (f"; limits narrowed to the recorded range: {', '.join(narrowed)}" if narrowed else "")
-        )
-    if unused:
-        changes.append(f"motors in the file but not in the robot, ignored: {sorted(unused)}")
-    ids: dict[int, list[str]] = {}
-    for joint, entry in raw["bus"]["servos"].items():
-        ids.setdefault(int(entry["id"]), []).append(joint)
-    shared = {i: js for i, js in ids.items() if len(js) > 1}
-    if shared:
-        motors = {j: m for m, j in used.items()}
-        said = "; ".join(f"id {i}: " + ", ".join(f"{j} (motor {motors.get(j, 'none, kept')!r})" for j in js)
-                         for i, js in sorted(shared.items()))  # fmt: skip
-        raise InputError(
-            f"{calib_path}: two servos would share one id ({said}); give each motor its own id; nothing written"
         )
     raw["name"] = out.stem
     raw["description"] = f"{robot.description} (calibrated from {Path(calib_path).name})".strip()

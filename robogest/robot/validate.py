@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from robogest.errors import ConfigError
-from robogest.fileio import load_yaml
+from robogest.fileio import load_yaml, read_text_capped
 from robogest.robot.config import RobotConfig
 
 #: No-load speed at 12 V (rad/s) of the servo models whose datasheets we have; velocity limits must stay below
@@ -588,7 +588,7 @@ def _load_problems(name_or_path: str | Path, message: str) -> list[Problem]:
     path = Path(str(name_or_path))
     out: list[Problem] = []
     try:
-        raw = load_yaml(path.read_text()) if path.is_file() else None
+        raw = load_yaml(read_text_capped(path, what="robot file"))  # InputError: the load error says it already
         model = (path.parent / raw["model"]).resolve() if isinstance(raw, dict) and "model" in raw else None
         if model is not None and model.is_file():
             import mujoco

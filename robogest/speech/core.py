@@ -175,7 +175,7 @@ def load_speech(
     words: tuple[Word, ...] = ()
     text = ""
     if transcript_path is not None:
-        tr = read_transcript(transcript_path)
+        tr = read_transcript(transcript_path, raw.shape[0] / file_sr)
         text = tr.text
         where = f"transcript {transcript_path} for {path}"
         if tr.timed:

@@ -75,7 +75,15 @@ def write_wav(speech: Speech, path: str | Path) -> Path:
     import soundfile as sf
 
     audio = np.clip(speech.audio, -1.0, 1.0)
-    return _atomic_write(path, lambda f: sf.write(f, audio, speech.sr, format="WAV", subtype="PCM_16"))
+    p = Path(path)
+    if not p.parent.is_dir():
+        raise InputError(f"{p}: output folder {p.parent} does not exist")
+    try:  # by name: libsndfile's own writes; through a Python file object a full disk printed tracebacks from its
+        with atomic_path(p, ".wav") as tmp:  # I/O callbacks, which Python can only report as "Exception ignored"
+            sf.write(str(tmp), audio, speech.sr, format="WAV", subtype="PCM_16")
+    except (AssertionError, RuntimeError):  # a short write (disk full) or libsndfile's error
+        raise write_error(p, OSError("libsndfile could not write it; the disk may be full")) from None
+    return p
 
 
 def speech_summary(speech: Speech) -> dict[str, Any]:

@@ -12,7 +12,7 @@ exceeds ``Ĩ_a * 10**(speech_margin_db / 20)`` (12 dB above the noise by default
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -117,20 +117,49 @@ def silent_spans(
     """
     quiet = np.asarray(volume) <= threshold
     times = np.arange(quiet.shape[0]) / rate
-    for w in words:
-        quiet[(times + 0.5 / rate > w.start_s) & (times - 0.5 / rate < w.end_s)] = False
+    starts = np.array([w.start_s for w in words], dtype=np.float64)
+    ends = np.array([w.end_s for w in words], dtype=np.float64)
+    if len(words):  # frames overlapping a word, as index ranges: linear in words + frames (a mask per word was not)
+        lo = np.searchsorted(times + 0.5 / rate, starts, side="right")  # first frame ending after the word's start
+        hi = np.searchsorted(times - 0.5 / rate, ends, side="left")  # first frame starting at or after its end
+        keep = lo < hi
+        inside = np.zeros(quiet.shape[0] + 1, dtype=np.int64)
+        np.add.at(inside, lo[keep], 1)
+        np.add.at(inside, hi[keep], -1)
+        quiet &= np.cumsum(inside[:-1]) == 0
     spans: list[tuple[float, float]] = []
+    by_end, by_start = np.argsort(ends, kind="stable"), np.argsort(starts, kind="stable")
     for i0, i1 in find_runs(quiet):
         start = 0.0 if i0 == 0 else max(0.0, (i0 - 0.5) / rate)
         end = duration_s if i1 == quiet.shape[0] else min(duration_s, (i1 - 0.5) / rate)
-        for w in words:  # snap to word edges within a frame (the mask above rounds to whole frames)
-            if start - 1.0 / rate <= w.end_s <= start + 1.0 / rate and w.start_s < start:
-                start = w.end_s
-            if end - 1.0 / rate <= w.start_s <= end + 1.0 / rate and w.end_s > end:
-                end = w.start_s
+        # snap to word edges within a frame (the mask above rounds to whole frames)
+        start = _snap(start, ends, by_end, ends[by_end], lambda i, x: starts[i] < x, 1.0 / rate)
+        end = _snap(end, starts, by_start, starts[by_start], lambda i, x: ends[i] > x, 1.0 / rate)
         if end - start >= min_silence_s - 1e-9:
             spans.append((float(start), float(end)))
     return tuple(spans)
+
+
+def _snap(
+    x: float,
+    edges: np.ndarray,
+    order: np.ndarray,
+    sorted_edges: np.ndarray,
+    ok: Callable[[int, float], bool],
+    tol: float,
+) -> float:
+    """``x`` moved as a loop over the words in list order moves it: to ``edges[i]`` of each word ``i`` whose edge is
+    within ``tol`` of the current ``x`` and ``ok(i, x)``; only the words near ``x`` are looked at (``order``
+    sorts ``edges``; ``sorted_edges`` is ``edges[order]``), so a span costs no pass over all the words."""
+    done = -1
+    while True:
+        a = np.searchsorted(sorted_edges, x - tol, side="left")
+        b = np.searchsorted(sorted_edges, x + tol, side="right")
+        near = np.sort(order[a:b])
+        hit = next((int(i) for i in near[near > done] if ok(int(i), x)), None)
+        if hit is None:
+            return x
+        x, done = float(edges[hit]), hit
 
 
 def active_regions(

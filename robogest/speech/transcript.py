@@ -40,10 +40,16 @@ from typing import Any
 import numpy as np
 
 from robogest.errors import InputError
+from robogest.fileio import check_input_file, read_text_capped
 from robogest.speech.types import Word
 
 #: Largest transcript file read, bytes (a 10-hour transcript with word timings is about 20 MB).
 MAX_TRANSCRIPT_BYTES = 64 * 1024**2
+#: Most words a transcript may give per second of its audio, on average (a BEAT2 speaker: 3.1, at most 7 in any
+#: second), plus :data:`SPARE_WORDS` for short clips. More is the transcript of something else, and was slow to
+#: find out: an 8 MB text for 2 s of audio ran past 120 s before failing or squeezing a million words into it.
+MAX_WORDS_PER_S = 15.0
+SPARE_WORDS = 20
 
 #: TextGrid / aligner labels that mark a pause rather than a word.
 PAUSE_LABELS = frozenset({"", "sil", "<sil>", "sp", "<sp>", "spn", "<eps>"})
@@ -117,36 +123,43 @@ def count_syllables(word: str) -> int:
     return max(1, n + digits)
 
 
-def read_transcript(path: str | Path) -> Transcript:
-    """Parse a transcript file; every failure is an :class:`InputError` naming the file."""
+def read_transcript(path: str | Path, audio_duration_s: float | None = None) -> Transcript:
+    """Parse a transcript file; every failure is an :class:`InputError` naming the file.
+
+    With ``audio_duration_s``, a transcript with more words than :data:`MAX_WORDS_PER_S` allows for that much
+    audio is refused as soon as its words are counted, before any is timed or spread.
+    """
     p = Path(path)
-    if not p.is_file():
+    if not p.exists():
         raise InputError(f"transcript {p}: file not found")
-    if p.stat().st_size > MAX_TRANSCRIPT_BYTES:
-        raise InputError(
-            f"transcript {p}: {p.stat().st_size / 1024**2:.0f} MiB is larger than the "
-            f"{MAX_TRANSCRIPT_BYTES / 1024**2:.0f} MiB robogest reads; is it really a transcript?"
-        )
     suffix = p.suffix.lower()
-    try:
-        if suffix == ".textgrid":
-            return _read_textgrid(p)
-        raw = p.read_text(encoding="utf-8-sig")
-    except InputError:
-        raise
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"transcript {p}: cannot read ({exc})") from exc
+    if suffix == ".textgrid":  # praatio reads it (UTF-8 or UTF-16): only its size is checked here
+        check_input_file(p, MAX_TRANSCRIPT_BYTES, "transcript")
+        return _read_textgrid(p, audio_duration_s)
+    raw = read_text_capped(p, MAX_TRANSCRIPT_BYTES, "transcript").removeprefix("\ufeff")
     if suffix == ".json":
-        return _parse_json(raw, p)
+        return _parse_json(raw, p, audio_duration_s)
     if suffix in (".tsv", ".csv"):
+        _check_word_count(raw.count("\n"), audio_duration_s, p)
         return _parse_table(raw, p, delimiter="\t" if suffix == ".tsv" else ",")
+    _check_word_count(len(raw.split()), audio_duration_s, p)  # C speed: before tokenizing a runaway file
     tokens = tokenize(raw)
     if not tokens:
         raise InputError(f"transcript {p}: no words in the text")
     return Transcript(text=raw.strip(), tokens=tuple(tokens))
 
 
-def _read_textgrid(p: Path) -> Transcript:
+def _check_word_count(n_words: int, audio_duration_s: float | None, p: Path) -> None:
+    """Refuse more words than speech can hold in ``audio_duration_s`` (see :data:`MAX_WORDS_PER_S`)."""
+    if audio_duration_s is None or n_words <= MAX_WORDS_PER_S * audio_duration_s + SPARE_WORDS:
+        return
+    raise InputError(
+        f"transcript {p}: {n_words} words for {audio_duration_s:.2f} s of audio, more than the "
+        f"{MAX_WORDS_PER_S:g} words/s (+{SPARE_WORDS}) speech can hold; is it the transcript of this audio?"
+    )
+
+
+def _read_textgrid(p: Path, audio_duration_s: float | None = None) -> Transcript:
     try:
         from praatio import textgrid
     except ImportError as exc:  # pragma: no cover - praatio is a core dependency
@@ -163,7 +176,9 @@ def _read_textgrid(p: Path) -> Transcript:
         chosen = interval_tiers[0]
     if chosen is None:
         raise InputError(f"transcript {p}: no 'words' interval tier (tiers: {', '.join(tg.tierNames) or 'none'})")
-    entries = [(float(e.start), float(e.end), str(e.label)) for e in tg.getTier(chosen).entries]
+    tier = tg.getTier(chosen)
+    _check_word_count(len(tier.entries), audio_duration_s, p)
+    entries = [(float(e.start), float(e.end), str(e.label)) for e in tier.entries]
     return _timed(entries, p)
 
 
@@ -276,14 +291,15 @@ def _collect_word_objs(obj: Any) -> list[dict[str, Any]]:
     return []
 
 
-def _parse_json(raw: str, p: Path) -> Transcript:
+def _parse_json(raw: str, p: Path, audio_duration_s: float | None = None) -> Transcript:
     try:
         data = json.loads(raw)
         objs = _collect_word_objs(data)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"transcript {p}: invalid JSON ({exc})") from exc
     except RecursionError:
         raise InputError(f"transcript {p}: JSON nested too deeply to be a transcript") from None
+    except ValueError as exc:  # JSONDecodeError, or an integer of over 4300 digits
+        raise InputError(f"transcript {p}: invalid JSON ({exc})") from None
+    _check_word_count(len(objs), audio_duration_s, p)
     if not objs:
         raise InputError(
             f"transcript {p}: no word timings found (expected a list of {{word, start, end}} objects, "

@@ -81,3 +81,32 @@ def test_no_output_device_plays_silently(monkeypatch):
     robot = find_robot("humanoid_xl430")
     report = player.play(sine_test_trajectory(robot, duration_s=0.2), MujocoBackend(robot), audio=np.zeros(100))
     assert report.completed and not report.audio
+
+
+@pytest.mark.parametrize(
+    ("raised", "says"),
+    [
+        (ImportError("No module named 'sounddevice'"), "sounddevice is not installed"),
+        (OSError("PortAudio library not found"), "the PortAudio library is missing (PortAudio library not found)"),
+    ],
+)
+def test_no_audio_output_names_what_is_missing(monkeypatch, raised, says):
+    """With sounddevice installed and only PortAudio missing (sounddevice's import raises OSError) the note said
+    "sounddevice is not installed", sending the user to reinstall what they had."""
+    import builtins
+    import sys
+
+    from robogest.backends.audio import open_output
+
+    real_import = builtins.__import__
+
+    def fake_import(name, *args, **kwargs):
+        if name == "sounddevice":
+            raise raised
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.delitem(sys.modules, "sounddevice", raising=False)
+    monkeypatch.setattr(builtins, "__import__", fake_import)
+    sd, why = open_output()
+    assert sd is None
+    assert why.startswith(says), why

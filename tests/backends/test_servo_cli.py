@@ -48,3 +48,17 @@ def test_bad_fault_spec_is_an_input_error(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("ROBOGEST_ROBOTS", str(tmp_path))
     assert main(["virtual-bus", "--robot", "clibot", "--faults", "noreply=7"]) == 2
     assert "noreply=P" in capsys.readouterr().err
+
+
+def test_scan_all_lists_each_feetech_servo_once(tmp_path, capsys):
+    """A Feetech STS servo answers STS, SCS and Dynamixel 1.0 pings (one packet format): `servo scan --all` listed
+    each servo three times, twice with an unknown model."""
+    from robogest.robot.config import load_robot_config
+    from robogest.virtualbus import VirtualBus
+
+    make_robot(tmp_path, family="feetech", protocol=0.0, n_joints=2, name="ftbot")
+    with VirtualBus(load_robot_config(tmp_path / "ftbot.yaml")) as bus:
+        assert main(["servo", "scan", "--port", bus.port, "--all", "--baud", "1000000", "--max-id", "5"]) == 0
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if " id " in ln]
+    assert len(lines) == 2, lines
+    assert all(ln.startswith("sts ") and "STS3215 (777)" in ln for ln in lines), lines

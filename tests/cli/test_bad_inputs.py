@@ -98,6 +98,17 @@ def text(name: str, content: str) -> Callable[[Path], None]:
     return lambda d: (d / name).write_text(content)
 
 
+def edit(name: str, old: str, new: str) -> Callable[[Path], None]:
+    """Replace ``old`` (which must be there) with ``new`` in the file ``name``."""
+
+    def make(d: Path) -> None:
+        text = (d / name).read_text()
+        assert old in text, old
+        (d / name).write_text(text.replace(old, new))
+
+    return make
+
+
 def sparse(name: str, size: int) -> Callable[[Path], None]:
     def make(d: Path) -> None:
         with open(d / name, "wb") as f:
@@ -164,9 +175,7 @@ def read_only_folder(name: str) -> Callable[[Path], None]:
 def read_only_file(name: str) -> Callable[[Path], None]:
     def make(d: Path) -> None:
         (d / name).write_text("keep me")
-        (d / name).chmod(0o444)
-        if os.access(d / name, os.W_OK):
-            pytest.skip("running as root: a read-only file is writable anyway")
+        (d / name).chmod(0o444)  # refused as root too, whom the kernel lets write it
 
     return make
 
@@ -235,6 +244,8 @@ CASES = [
          r"--plot o\.npz and --save o\.npz name the same file"),
     Case("speak-text-save-wav-is-plot", ["speak", "Hi", "--save", "o.npz", "--plot", "o.wav"], None, 2,
          r"--save's audio o\.wav and --plot o\.wav name the same file"),
+    Case("speak-text-save-beside-unrelated-wav", ["speak", "Hi", "--save", "o.npz"], wav("o.wav"), 2,
+         r"--save o\.npz: would replace o\.wav, which is not the audio of an earlier --save o\.npz"),
     Case("speak-video-is-robot-yaml", ["speak", "--audio", "a.wav", "--robot", "r.yaml", "--video", "sub/../r.yaml"],
          all_of(wav(), text("r.yaml", "name: x\n")), 2,
          r"--video sub/\.\./r\.yaml is the same file as the input --robot"),
@@ -271,6 +282,19 @@ CASES = [
          2, r"--save ro\.npz: the file is read-only"),
     Case("play-save-read-only-fs", ["play", "t.npz", *A, "--save", "ro/x.npz"], all_of(traj(), read_only_fs()), 2,
          r"--save ro/x\.npz: the folder .*ro is not writable"),
+    Case("play-save-dangling-symlink", ["play", "t.npz", *A, "--save", "x.npz"],
+         all_of(traj(), symlink("x.npz", "gone/dir/x.npz")), 2,
+         r"--save x\.npz: goes through a symlink to .*gone/dir, which does not exist"),
+    Case("play-save-via-dangling-folder-link", ["play", "t.npz", *A, "--save", "out/new/x.npz"],
+         all_of(traj(), symlink("out", "gone")), 2, r"--save out/new/x\.npz: goes through a symlink to .*gone/new"),
+    Case("play-save-name-too-long", ["play", "t.npz", *A, "--save", "x" * 300 + ".npz"], traj(), 2,
+         r"--save x{20}\.\.\.x{8}\.npz: the name is 304 bytes long, more than the 255"),
+    Case("play-save-folder-name-too-long", ["play", "t.npz", *A, "--save", "x" * 300 + "/f.npz"], traj(), 2,
+         r"--save x{20}\.\.\.x{12}: the name is 300 bytes long"),
+    Case("play-motion-name-too-long", ["play", "x" * 300 + ".npz", *A], None, 2,
+         r"x{30}\.\.\.x{16}\.npz: the file name is too long for this file system"),
+    Case("analyze-transcript-name-too-long", ["analyze", "a.wav", "--transcript", "x" * 300 + ".txt"], wav(), 2,
+         r"x\.txt: the file name is too long"),
     Case("play-save-dev-null", ["play", "t.npz", *A, "--save", "null"], all_of(traj(), null_device), 2,
          r"--save null: is a device, FIFO or socket"),
     Case("play-save-fifo", ["play", "t.npz", *A, "--save", "p.npz"], all_of(traj(), fifo("p.npz")), 2,
@@ -377,6 +401,9 @@ CASES = [
     Case("traj-limits-shape", ["play", "t.npz", *A], traj(q_min_rad=np.zeros(3)), 2, r"q_min_rad has shape \(3,\)"),
     Case("npz-crafted-header", ["play", "t.npz", *A], npz_declaring("t.npz", (10**11,)), 2,
          r"array 'q_rad' declares 800000000000 bytes but the file holds"),
+    Case("npz-decompression-bomb", ["play", "t.npz", *A],
+         lambda d: np.savez_compressed(d / "t.npz", q_rad=np.zeros((2_000_000, 1))), 2,
+         r"t\.npz: array 'q_rad' expands from \d+ to 16000128 bytes, more than the 100x"),
     Case("npz-not-a-zip", ["play", "t.npz", *A], text("t.npz", "hello"), 2, r"t\.npz: not a readable \.npz"),
     Case("eval-npz-not-a-zip", ["eval", "--pred", "t.npz"], text("t.npz", "hello"), 2, r"not a readable \.npz"),
     # --- motion files
@@ -385,6 +412,14 @@ CASES = [
     Case("bvh-frame-time-nan", ["eval", "--pred", "m.bvh"], bvh(frame_time="nan"), 2, r"Frame Time nan s is outside"),
     Case("bvh-frames-times-joints", ["play", "wide.bvh", *A], bvh_many_joints, 2,
          r"601 frames x 100001 joints is more than"),
+    Case("bvh-frames-5000-digits", ["play", "m.bvh", *A],
+         all_of(bvh(), edit("m.bvh", "Frames: 5", "Frames: " + "1" * 5000)), 2,
+         r"m\.bvh: line \d+: 1111111111\.\.\.\(5000 characters\) is not a count"),
+    Case("bvh-frames-fraction", ["play", "m.bvh", *A], all_of(bvh(), edit("m.bvh", "Frames: 5", "Frames: 4.5")),
+         2, r"m\.bvh: line \d+: 4\.5 is not a count"),
+    Case("robot-yaml-5000-digit-id", ["play", "t.npz", "--robot", f"robots/{ROBOT}.yaml"],
+         all_of(traj(), robot_copy, edit(f"robots/{ROBOT}.yaml", "{id: 1,", "{id: " + "1" * 5000 + ",")), 3,
+         r"humanoid_xl430\.yaml: not valid YAML: a number too long to read \(Exceeds the limit \(4300 digits\)"),
     Case("bvh-too-large", ["play", "big.bvh", *A], sparse("big.bvh", 3 * 1024**3), 2, r"3\.0 GiB is larger than"),
     Case("bvh-lasts-11-days", ["play", "long.bvh", *A], bvh_long, 2, r"long\.bvh: 1000000 frames at 1 fps last"),
     Case("smplx-fps-1e-9", ["play", "s.npz", *A],
@@ -392,11 +427,29 @@ CASES = [
          r"s\.npz: frame rate 1e-09 fps is outside 1\.\.1000"),
     Case("smplx-pickled", ["play", "s.npz", *A],
          lambda d: np.savez(d / "s.npz", poses=np.array([None], dtype=object)), 2, r"holds pickled Python objects"),
+    Case("smplx-string-poses", ["play", "s.npz", *A],
+         lambda d: np.savez(d / "s.npz", poses=np.full((5, 165), "x"), fps=30.0), 2,
+         r"s\.npz: 'poses' holds <U1 values, not numbers; re-export"),
+    Case("smplx-string-trans", ["play", "s.npz", *A],
+         lambda d: np.savez(d / "s.npz", poses=np.zeros((5, 165)), trans=np.full((5, 3), "0.1"), fps=30.0), 2,
+         r"s\.npz: 'trans' holds <U3 values, not numbers"),
     # --- speech inputs
     Case("transcript-deep-json", ["speak", "--audio", "a.wav", "--transcript", "w.json"],
          all_of(wav(), text("w.json", "[" * 100_000 + "]" * 100_000)), 2, r"w\.json: .*nested too deeply|invalid JSON"),
     Case("transcript-huge", ["analyze", "a.wav", "--transcript", "w.txt"], all_of(wav(), sparse("w.txt", 65 * 1024**2)),
-         2, r"transcript w\.txt: 65 MiB is larger than the 64 MiB"),
+         2, r"transcript w\.txt: 65\.0 MiB, larger than the 64 MiB"),
+    # an 8 MB text for 2 s of audio ran past 120 s (400 KB: 36 s); refused once its words are counted
+    Case("transcript-too-many-words", ["speak", "--audio", "a.wav", "--transcript", "w.txt"],
+         all_of(wav(), text("w.txt", "hello robot " * 50_000)), 2,
+         r"transcript w\.txt: 100000 words for 1\.00 s of audio, more than the 15 words/s \(\+20\)"),
+    Case("transcript-json-too-many-words", ["analyze", "a.wav", "--transcript", "w.json"],
+         all_of(wav(), text("w.json", "[" + ",".join(['{"word": "hi", "start": 0.5, "end": 0.5}'] * 40) + "]")), 2,
+         r"transcript w\.json: 40 words for 1\.00 s of audio"),
+    Case("transcript-5000-digit-number", ["analyze", "a.wav", "--transcript", "w.json"],
+         all_of(wav(), text("w.json", '[{"word": "hi", "start": 0, "end": ' + "1" * 5000 + "}]")), 2,
+         r"transcript w\.json: invalid JSON \(Exceeds the limit \(4300 digits\)"),
+    Case("transcript-fifo", ["analyze", "a.wav", "--transcript", "w.txt"], all_of(wav(), fifo("w.txt")), 2,
+         r"transcript w\.txt: not a regular file"),
     Case("generate-transcript-deep-json", ["generate", "--audio", "a.wav", "--transcript", "w.json", "--out", "m.bvh"],
          all_of(wav(), text("w.json", '{"words":' * 50_000 + "[]" + "}" * 50_000)), 2,
          r"w\.json: .*(nested too deeply|invalid JSON)"),
@@ -406,6 +459,25 @@ CASES = [
          3, r"r\.yaml: (YAML nested too deeply|not valid YAML)"),
     Case("lerobot-calibration-deep-json", ["robots", "import-lerobot-calibration", "c.json", "--robot", ROBOT],
          text("c.json", "[" * 100_000 + "]" * 100_000), 2, r"c\.json: JSON nested too deeply"),
+    Case("lerobot-calibration-of-so101-for-xl430", ["robots", "import-lerobot-calibration", "c.json", "--robot", ROBOT,
+         "--out", "x.yaml"], text("c.json", '{"shoulder_pan": {"id": 1, "drive_mode": 0, "homing_offset": -1470, '
+         '"range_min": 758, "range_max": 3292}}'), 2,
+         r"c\.json: motors \['shoulder_pan'\] are not joints of humanoid_xl430"),
+    Case("lerobot-calibration-5000-digits", ["robots", "import-lerobot-calibration", "c.json", "--robot", ROBOT],
+         text("c.json", '{"torso_yaw": {"id": ' + "1" * 5000 + "}}"), 2,
+         r"c\.json: not a LeRobot calibration file \(Exceeds the limit"),
+    Case("lerobot-calibration-3GB-sparse", ["robots", "import-lerobot-calibration", "c.json", "--robot", ROBOT],
+         sparse("c.json", 3 * 1024**3), 2, r"calibration c\.json: 3072\.0 MiB, larger than the 1 MiB"),
+    Case("lerobot-calibration-dev-zero", ["robots", "import-lerobot-calibration", "/dev/zero", "--robot", ROBOT], None,
+         2, r"calibration /dev/zero: not a regular file"),
+    Case("play-gear-ratio-1e-300", ["play", "t.npz", "--robot", f"robots/{ROBOT}.yaml"],
+         all_of(traj(), robot_copy, edit(f"robots/{ROBOT}.yaml", "model: XL430-W250, direction: -1}",
+                                 "model: XL430-W250, direction: -1, gear_ratio: 1.0e-300}")), 3,
+         r"key bus\.servos\.r_elbow: .*gear_ratio = 1e-300 is outside \[0\.01, 100\]"),
+    Case("robot-yaml-dev-zero", ["play", "t.npz", "--robot", "r.yaml"], all_of(traj(), symlink("r.yaml", "/dev/zero")),
+         3, r"robot file r\.yaml: not a regular file"),
+    Case("gesture-file-too-large", ["speak", "Hi", "--gestures", "g.yaml"], sparse("g.yaml", 5 * 1024**2), 3,
+         r"gesture file g\.yaml: 5\.0 MiB, larger than the 4 MiB"),
     Case("audio-rate-absurd", ["analyze", "a.wav"], wav(sr=1000), 2, r"audio a\.wav: sample rate 1000 Hz is outside"),
     # --- checkpoints
     Case("checkpoint-legacy-format", ["speak", "Hi", "--generator", "gesticulator", "--checkpoint", "c.pt"],
@@ -559,3 +631,47 @@ def test_backend_flags_fail_before_any_work_or_output(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and line in err[0], err
         assert list(tmp_path.iterdir()) == []
+
+
+def test_speak_save_twice_replaces_its_own_audio(tmp_path, monkeypatch, capsys):
+    """The .wav beside --save is refused only when it is not the audio of an earlier --save to the same name."""
+    monkeypatch.chdir(tmp_path)
+    for text in ("Hello.", "Hello there, robot."):
+        assert main(["speak", text, "--save", "o.npz"]) == 0, capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o.npz", "o.wav"]
+    assert sf.info(tmp_path / "o.wav").duration > 1.0  # the second sentence's audio
+
+
+def test_robots_validate_refuses_an_implausible_gear_ratio(tmp_path, monkeypatch, capsys):
+    """`gear_ratio: 1.0e-300` passed `robots validate` and the joint never moved (every goal was the zero tick)."""
+    monkeypatch.chdir(tmp_path)
+    robot_copy(tmp_path)
+    edit(f"robots/{ROBOT}.yaml", "model: XL430-W250, direction: -1}",
+         "model: XL430-W250, direction: -1, gear_ratio: 1.0e-300}")(tmp_path)  # fmt: skip
+    assert main(["robots", "validate", f"robots/{ROBOT}.yaml"]) == 3
+    assert "gear_ratio = 1e-300 is outside [0.01, 100]" in capsys.readouterr().out
+
+
+def test_speak_video_on_a_full_disk_is_one_line_not_a_crash(tmp_path):
+    """`speak --video` on a full disk ended in SIGSEGV: after the first failed write dropped the file, the glide to
+    rest still rendered frames into PyAV's closed container. Run apart: the old code killed the process."""
+    import sys
+
+    mount_tmpfs(tmp_path / "full", "size=64k")
+    try:
+        fill_up(tmp_path / "full")
+        renderer(tmp_path)
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+        proc = subprocess.run(
+            [sys.executable, "-m", "robogest", "speak", "Hello there, I am a robot.", "--video", "full/v.mp4"],
+            capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300,
+        )  # fmt: skip
+        errors = [ln for ln in proc.stderr.splitlines() if "error" in ln or "Traceback" in ln or "Fatal" in ln]
+        assert proc.returncode == 1, proc.stderr
+        assert errors == [
+            "robogest: error: full/v.mp4: cannot write (No space left on device); nothing was written, free space "
+            "or choose another path"
+        ]
+        assert sorted(p.name for p in (tmp_path / "full").iterdir()) == ["filler"]
+    finally:
+        subprocess.run(["umount", "-l", str(tmp_path / "full")], check=False)

@@ -110,3 +110,25 @@ def test_head_reads_first_line_and_stdout_is_line_buffered():
     )  # fmt: skip
     assert proc.stdout == "# robots\n"
     assert "Traceback" not in proc.stderr and proc.stderr.strip() == "True"
+
+
+def test_closed_stderr_is_not_an_error(tmp_path):
+    """Started with stderr closed (`robogest speak ... 2>&-`) the command ended with exit 1 and no word, before
+    any motion: Python leaves sys.stderr None and the progress bar wrote to it."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "robogest", "speak", "Hi", "--save", str(tmp_path / "s.npz")],
+        stdout=subprocess.PIPE, preexec_fn=lambda: os.close(2), env=_env(), cwd=tmp_path, text=True, timeout=120,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout
+    assert "sim tracking error" in proc.stdout
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.npz", "s.wav"]
+
+
+def test_closed_stdout_is_not_an_error():
+    """Started with stdout closed (`robogest robots list >&-`) main's first look at sys.stdout (None) was a
+    traceback; the output goes nowhere, as it would to /dev/null."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "robogest", "robots", "list"],
+        stderr=subprocess.PIPE, preexec_fn=lambda: os.close(1), env=_env(), cwd=REPO, timeout=120,
+    )  # fmt: skip
+    assert (proc.returncode, proc.stderr) == (0, b"")

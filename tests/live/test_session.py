@@ -360,3 +360,14 @@ def test_a_replaced_stream_that_fails_later_leaves_the_utterance_playing_now_alo
         with pytest.raises(RuntimeError, match="simulated"):
             s.wait(30)
         assert h.wait(60) and h.event("done") is not None and not h.interrupted
+
+
+def test_open_after_close_raises_instead_of_doing_nothing():
+    """`Robot.open()` after `close()` returned the closed session silently; every say then failed as not open."""
+    robot = Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST, warm_up=False)
+    robot.open()
+    assert robot.open() is robot  # open twice while open: the same session
+    robot.close()
+    with pytest.raises(InputError, match=r"this humanoid_xl430 session was closed; .*make a new Robot\(\.\.\.\)"):
+        robot.open()
+    assert robot.close() is None  # closing again stays a no-op

@@ -68,3 +68,14 @@ def test_a_file_with_no_frames_is_one_line(tmp_path):
     for name in ("p.npz", "a.npz"):
         with pytest.raises(InputError, match=rf"{name}: the file has no frames"):
             load_smplx(tmp_path / name)
+
+
+def test_an_all_zero_unused_array_is_no_decompression_bomb(tmp_path, rng):
+    """Only the arrays used are checked and loaded: a compressed file whose (unused) expressions are all zeros
+    expands 1000x and would be refused as a decompression bomb; poses that do are still refused."""
+    poses = rng.normal(scale=0.1, size=(30, 165))
+    np.savez_compressed(tmp_path / "a.npz", poses=poses, expressions=np.zeros((20_000, 100)), mocap_frame_rate=30.0)
+    assert load_smplx(tmp_path / "a.npz").n_frames == 30
+    np.savez_compressed(tmp_path / "b.npz", poses=np.zeros((20_000, 165)), mocap_frame_rate=30.0)
+    with pytest.raises(InputError, match=r"b\.npz: array 'poses' expands from \d+ to 26400128 bytes"):
+        load_smplx(tmp_path / "b.npz")

@@ -82,10 +82,27 @@ def test_servo_ticks_match_lerobot_degrees(tmp_path, so101_copy):
     assert ticks[2] == 2000  # elbow_flex at 0: the middle of its recorded range
 
 
-def test_matched_by_id_when_names_differ(tmp_path, so101_copy):
-    calib = {f"motor{c['id']}": c for c in CALIB.values()}
-    r = load_robot_config(import_lerobot_calibration(_write(tmp_path, calib), so101_copy).path)
-    assert r.bus.servos["gripper"].zero_offset_rad == pytest.approx(652 * TICK, abs=1e-6)
+def test_a_calibration_of_another_robot_is_refused(tmp_path, so101_copy):
+    """An SO-101 (Feetech) calibration imported for humanoid_xl430 (Dynamixel) was matched by servo id: six joints
+    got foreign zero offsets, exit 0, "valid". Motors must be named after the joints, have their servo ids, and a
+    LeRobot folder of the other servo family is refused."""
+    xl430 = find_robot("humanoid_xl430")
+    for calib, path, pattern in (
+        (CALIB, "follower.json", r"motors \['shoulder_pan', .*'gripper'\] are not joints of humanoid_xl430 \(its "
+         r"joints: torso_yaw, "),
+        ({f"motor{c['id']}": c for c in CALIB.values()}, "follower.json", r"motors \['motor1', "),
+        ({"torso_yaw": CALIB["shoulder_pan"]}, "so101_follower/arm.json",
+         r"so101_follower/arm\.json: a calibration of a so101_follower \(feetech servos\), not of humanoid_xl430 "
+         r"\(dynamixel servos\)"),
+    ):  # fmt: skip
+        (tmp_path / path).parent.mkdir(exist_ok=True)
+        with pytest.raises(InputError, match=pattern):
+            import_lerobot_calibration(_write(tmp_path, calib, path), xl430, out=tmp_path / "x.yaml")
+    assert not (tmp_path / "x.yaml").exists()
+    moved = {**CALIB, "wrist_roll": {**CALIB["wrist_roll"], "id": 9}}
+    with pytest.raises(InputError, match=r"motors wrist_roll \(id 9; so101_sts3215: id 5\) have other servo ids"):
+        import_lerobot_calibration(_write(tmp_path, moved), so101_copy)
+    assert not (tmp_path / "so101_calibrated.yaml").exists()
 
 
 def test_rest_outside_recorded_range_refused(tmp_path, so101_copy):
@@ -111,25 +128,14 @@ def test_bad_calibration_files(tmp_path, so101_copy, calib, pattern):
         import_lerobot_calibration(_write(tmp_path, calib), so101_copy)
 
 
-def test_one_motor_for_two_joints_is_refused_and_a_good_copy_is_kept(tmp_path, so101_copy):
-    """A motor named after one joint with the id of another matched both: two joints, one servo id. The copy
-    failed to load but stayed written, and with --force replaced a good one."""
+def test_a_refused_calibration_keeps_a_good_copy(tmp_path, so101_copy):
+    """A refused calibration replaces nothing, even with --force."""
     good = import_lerobot_calibration(_write(tmp_path, CALIB), so101_copy).path
     before = good.read_text()
-    calib = {k: v for k, v in CALIB.items() if k != "shoulder_pan"}
-    calib["shoulder_lift"] = {**CALIB["shoulder_lift"], "id": 1}  # shoulder_pan's id, under shoulder_lift's name
-    with pytest.raises(InputError, match=r"motor 'shoulder_lift' matches both joint 'shoulder_pan' .* and joint "
-                                         r"'shoulder_lift'; .* nothing written"):  # fmt: skip
-        import_lerobot_calibration(_write(tmp_path, calib), so101_copy, overwrite=True)
-    assert good.read_text() == before
     twice = {**CALIB, "shoulder_pan": {**CALIB["shoulder_pan"], "id": 2}}  # both joints' servos on id 2
-    with pytest.raises(
-        InputError,
-        match=r"follower\.json: two servos would share one id \(id 2: shoulder_pan "
-        r"\(motor 'shoulder_pan'\), shoulder_lift \(motor 'shoulder_lift'\)\)",
-    ):
+    with pytest.raises(InputError, match=r"follower\.json: motors shoulder_pan \(id 2; so101_sts3215: id 1\)"):
         import_lerobot_calibration(_write(tmp_path, twice), so101_copy, overwrite=True)
-    assert good.read_text() == before  # a copy that does not load replaces nothing
+    assert good.read_text() == before
 
 
 def test_a_copy_that_would_not_load_is_named_as_the_copy_not_a_temporary_file(tmp_path, so101_copy, monkeypatch):
