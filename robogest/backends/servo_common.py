@@ -77,6 +77,14 @@ class ServoBackend(Backend):
         at shutdown; :func:`~robogest.backends.player.play` sets it (:meth:`set_control_rate`).
     health_hz : float
         Each servo's temperature, voltage and load are read at this rate (round robin).
+    torque_check_s : float
+        While torque is on, every servo's Torque Enable register is read back at least this often: one sync read
+        of all servos every ``torque_check_ticks`` position reads (control ticks); without sync read (Dynamixel
+        Protocol 1.0) a share of the servos each tick. A servo found limp (a brownout or reset, or another
+        program on the bus switched it off) stops the motion: the servos still holding torque glide to rest,
+        torque goes off, and a BackendError names it; its torque is never switched back on. A read-back that
+        gets no reply is repeated on the next tick, so with one lost reply a limp servo is still found within
+        0.2 s. 0 turns the check off.
     max_temperature_c : float
         Stop above this temperature.
     voltage_range_v : (float, float), optional
@@ -114,6 +122,7 @@ class ServoBackend(Backend):
         lost_after_s: float = 0.15,
         control_rate_hz: float = 50.0,
         health_hz: float = 2.0,
+        torque_check_s: float = 0.1,
         max_temperature_c: float = 65.0,
         voltage_range_v: tuple[float, float] | None = None,
         max_load_pct: float | None = None,
@@ -142,6 +151,9 @@ class ServoBackend(Backend):
         self.lost_after_s = lost_after_s
         self.set_control_rate(control_rate_hz)
         self.health_period_s = 1.0 / health_hz if health_hz > 0 else float("inf")
+        if not (math.isfinite(torque_check_s) and torque_check_s >= 0):
+            raise InputError(f"torque_check_s = {torque_check_s!r} must be a finite number of seconds >= 0 (0: off)")
+        self.torque_check_s = float(torque_check_s)
         self.max_temperature_c = max_temperature_c
         self.voltage_range_v = voltage_range_v
         self.max_load_pct = max_load_pct
@@ -185,6 +197,11 @@ class ServoBackend(Backend):
         self._health_idx = 0
         self._next_health = 0.0
         self._health_unread_since: dict[int, float] = {}
+        self._torque_reads = 0  # position reads since torque went on (the torque read-back's clock)
+        self._torque_next = 0  # round-robin position of the read-back without sync read
+        self._torque_unread: list[int] = []  # servos whose last torque read-back got no reply: read next tick
+        #: Servos found with torque off while it was on (:meth:`_maybe_check_torque`); never switched back on.
+        self.limp_ids: list[int] = []
         self._stop_faults: set[str] = set()  # faults noted during the final glide (:meth:`_noted_while_stopping`)
         #: A servo whose health cannot be read for this long stops the motion (seconds).
         self.health_lost_after_s = 2.0
@@ -204,6 +221,12 @@ class ServoBackend(Backend):
     @property
     def lost_after_ticks(self) -> int:
         return max(1, math.ceil(self.lost_after_s * self.control_rate_hz - 1e-9))
+
+    @property
+    def torque_check_ticks(self) -> int:
+        """Position reads (control ticks) between two read-backs of a servo's torque: ``torque_check_s`` at the
+        control rate, at least 1."""
+        return max(1, math.floor(self.torque_check_s * self.control_rate_hz + 1e-9))
 
     # --- family hooks ----------------------------------------------------------------------------
     #: The vendor SDK module: ``PortHandler``, ``PacketHandler``, ``GroupSyncWrite``, ``COMM_SUCCESS`` (the two SDKs
@@ -484,11 +507,7 @@ class ServoBackend(Backend):
             if ok:
                 hw = self._hardware_error(sid, err)
                 if hw:
-                    regname = reg.name if reg else "-"
-                    raise BackendError(
-                        f"{self._who(sid)} reports {hw} (register {regname}, attempt {attempt}/{attempts}); "
-                        "motion stopped, torque off"
-                    )
+                    raise self._fault_error(sid, hw, reg, f"{attempt}/{attempts}")
                 return value
             last = comm
             self.retry_count += 1
@@ -503,6 +522,13 @@ class ServoBackend(Backend):
         regname = reg.name if reg else "-"
         raise BusUnreliableError(
             f"{self._who(sid)}: no valid reply to {what} register {regname} after {attempts} attempts ({last})"
+        )
+
+    def _fault_error(self, sid: int, hw: str, reg: Enum | None, attempt: str) -> BackendError:
+        """The error for a reply whose status byte flags hardware fault ``hw`` (:meth:`_hardware_error`)."""
+        return BackendError(
+            f"{self._who(sid)} reports {hw} (register {reg.name if reg else '-'}, attempt {attempt}); "
+            "motion stopped, torque off"
         )
 
     def read_register(self, sid: int, reg: Enum) -> int:
@@ -549,10 +575,7 @@ class ServoBackend(Backend):
                     continue
                 hw = self._hardware_error(sid, err)
                 if hw and not self._noted_while_stopping(sid, f"reports {hw}"):
-                    raise BackendError(
-                        f"{self._who(sid)} reports {hw} (register {reg.name}, attempt {attempts[sid]}/"
-                        f"{self.retries + 1}); motion stopped, torque off"
-                    )
+                    raise self._fault_error(sid, hw, reg, f"{attempts[sid]}/{self.retries + 1}")
                 out[k] = value
                 if tolerate_missing:
                     self._last_ok_s[k] = now
@@ -730,6 +753,7 @@ class ServoBackend(Backend):
             self._miss_attempts[:] = 0
             self._positions_known = True
         self._last_ticks = ticks
+        self._maybe_check_torque()
         self._maybe_check_health()
         return self.ticks_to_rad(ticks)
 
@@ -772,6 +796,7 @@ class ServoBackend(Backend):
                     raise
                 errors.append(str(e))  # keep turning the others off
         self.torque_enabled = on
+        self._torque_reads, self._torque_unread = 0, []
         if errors:
             raise BackendError("torque off failed: " + "; ".join(errors))
 
@@ -816,6 +841,53 @@ class ServoBackend(Backend):
             finally:
                 self.disconnect()
         self.events.extend(f"shutdown: {p}" for p in problems)
+
+    # --- torque read-back --------------------------------------------------------------------------
+    def _maybe_check_torque(self) -> None:
+        """Read back Torque Enable of the servos due this tick (see ``torque_check_s``); raise when one is off.
+
+        A servo loses torque without a word on the bus when its supply browns out (it reboots), when another
+        program writes its register, or when its firmware's shutdown trips between two reads; goals written to it
+        then move nothing, and playback would go on as if they did. Skipped while torque is meant to be off and on
+        the final glide to rest (nothing is left to stop)."""
+        if not self.torque_enabled or self.stopping or self.torque_check_s <= 0 or not len(self.ids):
+            return
+        ids = [int(i) for i in self.ids]
+        n = self.torque_check_ticks
+        self._torque_reads += 1
+        due = set(self._torque_unread)
+        if self._has_sync_read():
+            if self._torque_reads % n == 0:
+                due.update(ids)  # one transaction for all every n ticks
+        else:  # one transaction per servo: a share each tick, so that no tick carries them all
+            per = math.ceil(len(ids) / n)
+            due.update(ids[(self._torque_next + i) % len(ids)] for i in range(per))
+            self._torque_next = (self._torque_next + per) % len(ids)
+        if not due:
+            return
+        reg = self.REG["torque"]
+        got = self._sync_read_group(reg, sorted(due, key=ids.index))
+        self._torque_unread = []
+        limp = []
+        for sid in sorted(due, key=ids.index):
+            value, ok, err, _ = got.get(sid, (0, False, 0, "no reply"))
+            if not ok:
+                self._torque_unread.append(sid)  # position reads catch a servo that stopped answering
+                continue
+            hw = self._hardware_error(sid, err)
+            if hw:
+                raise self._fault_error(sid, hw, reg, "1/1")
+            if value == 0:
+                limp.append(sid)
+        if limp:
+            self.limp_ids = limp
+            who = "; ".join(self._who(sid) for sid in limp[:4])
+            who += f"; and {len(limp) - 4} more" if len(limp) > 4 else ""
+            raise BackendError(
+                f"{who}: torque found off while robogest held it on (a brownout or reset, or another program on the "
+                "bus switched it off); motion stopped, the servos still holding torque glided to rest, torque off; "
+                "check the servos' power supply and that no other program uses the port"
+            )
 
     # --- health ----------------------------------------------------------------------------------
     def _maybe_check_health(self) -> None:
