@@ -82,10 +82,11 @@ def _assert_at_rest_torque_off(bus, robot) -> np.ndarray:
     return rec
 
 
-@pytest.mark.parametrize(("name", "code"), [("SIGINT", 130), ("SIGTERM", 143), ("SIGHUP", 129)])
+@pytest.mark.usefixtures("quit_does_not_dump_core")
+@pytest.mark.parametrize(("name", "code"), [("SIGINT", 130), ("SIGTERM", 143), ("SIGHUP", 129), ("SIGQUIT", 131)])
 def test_signal_during_speak_ends_at_rest_with_torque_off_and_one_line(name, code, monkeypatch, capsys):
-    """Ctrl-C, kill, or the terminal/SSH session closing half a second into the motion: one line naming the
-    signal, exit code 128 + signum, the robot back at rest with every servo's torque off."""
+    """Ctrl-C, kill, the terminal/SSH session closing, or Ctrl-\\ half a second into the motion: one line naming
+    the signal, exit code 128 + signum, the robot back at rest with every servo's torque off."""
     import signal
 
     _signal_at(monkeypatch, getattr(signal, name))
