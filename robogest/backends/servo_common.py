@@ -79,8 +79,9 @@ class ServoBackend(Backend):
         Each servo's temperature, voltage and load are read at this rate (round robin).
     torque_check_s : float
         While torque is on, every servo's Torque Enable register is read back at least this often: one sync read
-        of all servos every ``torque_check_ticks`` position reads (control ticks); without sync read (Dynamixel
-        Protocol 1.0) a share of the servos each tick. A servo found limp (a brownout or reset, or another
+        of all servos every ``torque_check_ticks`` position reads (control ticks), or sooner when ticks run late
+        and ``torque_check_s`` has passed; without sync read (Dynamixel Protocol 1.0) a share of the servos each
+        tick. A servo found limp (a brownout or reset, or another
         program on the bus switched it off) stops the motion: the servos still holding torque glide to rest,
         torque goes off, and a BackendError names it; its torque is never switched back on. A read-back that
         gets no reply is repeated on the next tick, so with one lost reply a limp servo is still found within
@@ -197,7 +198,8 @@ class ServoBackend(Backend):
         self._health_idx = 0
         self._next_health = 0.0
         self._health_unread_since: dict[int, float] = {}
-        self._torque_reads = 0  # position reads since torque went on (the torque read-back's clock)
+        self._torque_reads = 0  # position reads since the last read-back of every servo's torque
+        self._torque_read_s = 0.0  # time.monotonic() of that read-back
         self._torque_next = 0  # round-robin position of the read-back without sync read
         self._torque_unread: list[int] = []  # servos whose last torque read-back got no reply: read next tick
         #: Servos found with torque off while it was on (:meth:`_maybe_check_torque`); never switched back on.
@@ -796,7 +798,7 @@ class ServoBackend(Backend):
                     raise
                 errors.append(str(e))  # keep turning the others off
         self.torque_enabled = on
-        self._torque_reads, self._torque_unread = 0, []
+        self._torque_reads, self._torque_read_s, self._torque_unread = 0, time.monotonic(), []
         if errors:
             raise BackendError("torque off failed: " + "; ".join(errors))
 
@@ -854,11 +856,13 @@ class ServoBackend(Backend):
             return
         ids = [int(i) for i in self.ids]
         n = self.torque_check_ticks
+        now = time.monotonic()
         self._torque_reads += 1
         due = set(self._torque_unread)
-        if self._has_sync_read():
-            if self._torque_reads % n == 0:
-                due.update(ids)  # one transaction for all every n ticks
+        if self._has_sync_read():  # one transaction for all every n ticks, or torque_check_s when ticks run late
+            if self._torque_reads >= n or now - self._torque_read_s >= self.torque_check_s:
+                due.update(ids)
+                self._torque_reads, self._torque_read_s = 0, now
         else:  # one transaction per servo: a share each tick, so that no tick carries them all
             per = math.ceil(len(ids) / n)
             due.update(ids[(self._torque_next + i) % len(ids)] for i in range(per))
