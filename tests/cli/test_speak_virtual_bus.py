@@ -161,7 +161,7 @@ def test_interrupt_when_the_bus_is_gone_says_rest_was_not_reached(monkeypatch, c
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["SIGINT", "SIGHUP"])
+@pytest.mark.parametrize("name", ["SIGINT", "SIGHUP", "SIGQUIT"])
 def test_signal_to_a_background_process_ends_at_rest(name, tmp_path):
     """A background ``robogest speak`` (started with SIGINT ignored, as a shell's ``&`` does) gets ``name``
     mid-motion: it still glides to rest, turns torque off, prints one line and exits with 128 + signum."""
