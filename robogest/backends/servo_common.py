@@ -80,10 +80,10 @@ class ServoBackend(Backend):
     torque_check_s : float
         While torque is on, every servo's Torque Enable register is read back at least this often: one sync read
         of all servos every ``torque_check_ticks`` position reads (control ticks), or sooner when ticks run late
-        and ``torque_check_s`` has passed; without sync read (Dynamixel Protocol 1.0) a share of the servos each
-        tick. A servo found limp (a brownout or reset, or another
-        program on the bus switched it off) stops the motion: the servos still holding torque glide to rest,
-        torque goes off, and a BackendError names it; its torque is never switched back on. A read-back that
+        and ``torque_check_s`` has passed; without sync read (Dynamixel Protocol 1.0) one servo at a time, each
+        once per ``torque_check_ticks``, spread evenly over them. A servo found limp (a brownout or reset, or
+        another program on the bus switched it off) stops the motion: the servos still holding torque glide to
+        rest, torque goes off, and a BackendError names it; its torque is never switched back on. A read-back that
         gets no reply is repeated on the next tick, so with one lost reply a limp servo is still found within
         0.2 s. 0 turns the check off.
     max_temperature_c : float
@@ -200,7 +200,6 @@ class ServoBackend(Backend):
         self._health_unread_since: dict[int, float] = {}
         self._torque_reads = 0  # position reads since the last read-back of every servo's torque
         self._torque_read_s = 0.0  # time.monotonic() of that read-back
-        self._torque_next = 0  # round-robin position of the read-back without sync read
         self._torque_unread: list[int] = []  # servos whose last torque read-back got no reply: read next tick
         #: Servos found with torque off while it was on (:meth:`_maybe_check_torque`); never switched back on.
         self.limp_ids: list[int] = []
@@ -863,10 +862,9 @@ class ServoBackend(Backend):
             if self._torque_reads >= n or now - self._torque_read_s >= self.torque_check_s:
                 due.update(ids)
                 self._torque_reads, self._torque_read_s = 0, now
-        else:  # one transaction per servo: a share each tick, so that no tick carries them all
-            per = math.ceil(len(ids) / n)
-            due.update(ids[(self._torque_next + i) % len(ids)] for i in range(per))
-            self._torque_next = (self._torque_next + per) % len(ids)
+        else:  # one transaction per servo: each once per n ticks, spread evenly, so that no tick carries them all
+            tick = self._torque_reads % n
+            due.update(sid for j, sid in enumerate(ids) if j * n // len(ids) == tick)
         if not due:
             return
         reg = self.REG["torque"]
