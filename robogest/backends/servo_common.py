@@ -201,6 +201,7 @@ class ServoBackend(Backend):
         self._torque_reads = 0  # position reads since the last read-back of every servo's torque
         self._torque_read_s = 0.0  # time.monotonic() of that read-back
         self._torque_unread: list[int] = []  # servos whose last torque read-back got no reply: read next tick
+        self._torque_put_off_s: float | None = None  # when a read-back was first put off for a struggling bus
         #: Servos found with torque off while it was on (:meth:`_maybe_check_torque`); never switched back on.
         self.limp_ids: list[int] = []
         self._stop_faults: set[str] = set()  # faults noted during the final glide (:meth:`_noted_while_stopping`)
@@ -747,6 +748,7 @@ class ServoBackend(Backend):
             )
 
     def read_positions(self) -> np.ndarray:
+        trouble = self.retry_count + self.missed_reads
         ticks = self._sync_read(self.REG["present"], tolerate_missing=self._positions_known)
         if not self._positions_known:  # the first read (while connecting) must see every servo
             self._last_ok_s[:] = time.monotonic()
@@ -754,7 +756,7 @@ class ServoBackend(Backend):
             self._miss_attempts[:] = 0
             self._positions_known = True
         self._last_ticks = ticks
-        self._maybe_check_torque()
+        self._maybe_check_torque(busy=self.retry_count + self.missed_reads > trouble)
         self._maybe_check_health()
         return self.ticks_to_rad(ticks)
 
@@ -798,6 +800,7 @@ class ServoBackend(Backend):
                 errors.append(str(e))  # keep turning the others off
         self.torque_enabled = on
         self._torque_reads, self._torque_read_s, self._torque_unread = 0, time.monotonic(), []
+        self._torque_put_off_s = None
         if errors:
             raise BackendError("torque off failed: " + "; ".join(errors))
 
@@ -844,13 +847,16 @@ class ServoBackend(Backend):
         self.events.extend(f"shutdown: {p}" for p in problems)
 
     # --- torque read-back --------------------------------------------------------------------------
-    def _maybe_check_torque(self) -> None:
+    def _maybe_check_torque(self, busy: bool = False) -> None:
         """Read back Torque Enable of the servos due this tick (see ``torque_check_s``); raise when one is off.
 
         A servo loses torque without a word on the bus when its supply browns out (it reboots), when another
         program writes its register, or when its firmware's shutdown trips between two reads; goals written to it
         then move nothing, and playback would go on as if they did. Skipped while torque is meant to be off and on
-        the final glide to rest (nothing is left to stop)."""
+        the final glide to rest (nothing is left to stop). ``busy``: this tick's position read had to re-read or
+        missed a servo; the read-back is then put off to a later tick, for up to ``torque_check_s``, so that a
+        struggling bus's ticks stay short and the next position read comes soon (two missed in a row over
+        ``lost_after_s`` declare a servo lost)."""
         if not self.torque_enabled or self.stopping or self.torque_check_s <= 0 or not len(self.ids):
             return
         ids = [int(i) for i in self.ids]
@@ -867,11 +873,18 @@ class ServoBackend(Backend):
             due.update(sid for j, sid in enumerate(ids) if j * n // len(ids) == tick)
         if not due:
             return
+        asked = sorted(due, key=ids.index)  # bus order: servos answer a sync read in the order asked
+        if busy:
+            self._torque_put_off_s = self._torque_put_off_s or now
+            if now - self._torque_put_off_s < self.torque_check_s:
+                self._torque_unread = asked
+                return
+        self._torque_put_off_s = None
         reg = self.REG["torque"]
-        got = self._sync_read_group(reg, sorted(due, key=ids.index))
+        got = self._sync_read_group(reg, asked)
         self._torque_unread = []
         limp = []
-        for sid in sorted(due, key=ids.index):
+        for sid in asked:
             value, ok, err, _ = got.get(sid, (0, False, 0, "no reply"))
             if not ok:
                 self._torque_unread.append(sid)  # position reads catch a servo that stopped answering

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -111,3 +112,30 @@ def test_a_bad_torque_check_period_is_refused_naming_it(tmp_path, bad):
 
     with pytest.raises(InputError, match="torque_check_s"):
         get_backend_factory("dynamixel")(make_robot(tmp_path), port="/dev/null", torque_check_s=bad)
+
+
+def test_a_struggling_bus_puts_the_read_back_off_for_at_most_torque_check_s(tmp_path, monkeypatch):
+    """On a tick whose position read had to re-read or missed a servo, the read-back waits (that tick already ran
+    long, and two missed position reads over lost_after_s declare a servo lost), but not past torque_check_s."""
+    import robogest.backends.servo_common as sc
+
+    robot = make_robot(tmp_path)
+    with VirtualBus(robot) as bus:
+        backend = get_backend_factory("dynamixel")(robot, port=bus.port, **NOT_LOST)
+        backend.connect()
+        try:
+            backend.set_torque(True)
+            bus.inject_now("torqueoff", 2)
+            n = backend.torque_check_ticks
+            clock = [backend._torque_read_s]
+            monkeypatch.setattr(sc, "time", SimpleNamespace(monotonic=lambda: clock[0], sleep=time.sleep))
+            ticks = 0
+            with pytest.raises(BackendError, match=r"servo id 2 \(joint j1\): torque found off"):
+                while ticks < 10 * n:
+                    ticks += 1
+                    clock[0] += backend.control_period_s
+                    backend._maybe_check_torque(busy=True)
+        finally:
+            monkeypatch.undo()
+            backend.shutdown()
+    assert 2 * n - 1 <= ticks <= 2 * n + 1  # put off from tick n for 0.1 s (n ticks), then read
