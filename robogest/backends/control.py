@@ -22,7 +22,7 @@ Two ways to run it, sharing every line of the tick:
 
 :meth:`ControlLoop.close` (idempotent) glides to rest, then calls ``backend.shutdown()`` (torque off,
 disconnect). :func:`go_to_rest` is the same glide for a backend without a running loop (what every backend's
-``shutdown`` uses). :func:`signals_end_at_rest` turns SIGINT, SIGTERM and SIGHUP into :class:`Interrupted`
+``shutdown`` uses). :func:`signals_end_at_rest` turns SIGINT, SIGTERM, SIGHUP and SIGQUIT into :class:`Interrupted`
 so the same path runs, and keeps a second signal from cutting the glide short.
 """
 
@@ -53,7 +53,7 @@ REST_TIMEOUT_S = 10.0
 
 # --- signals -----------------------------------------------------------------------------------------
 class Interrupted(KeyboardInterrupt):
-    """SIGINT, SIGTERM or SIGHUP arrived: the robot is taken to rest and torque turned off on the way out.
+    """SIGINT, SIGTERM, SIGHUP or SIGQUIT arrived: the robot is taken to rest and torque turned off on the way out.
 
     A :class:`KeyboardInterrupt` (so ``except Exception`` never swallows it); ``exit_code`` is ``128 + signum``;
     ``outcome`` is filled in once the shutdown has run (at rest with torque off, or why not).
@@ -80,7 +80,8 @@ class _SignalState:
 
 
 _SIG = _SignalState()
-_HANDLED = ("SIGINT", "SIGTERM", "SIGHUP")
+#: Signals that end motion at rest; SIGQUIT (Ctrl-\) too: its default ends the process at once, torque left on.
+_HANDLED = ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
 
 
 def _on_signal(signum: int, frame: Any) -> None:
@@ -110,7 +111,7 @@ def _raise_pending() -> None:
 
 @contextlib.contextmanager
 def signals_end_at_rest() -> Iterator[None]:
-    """Within the block, SIGINT, SIGTERM and SIGHUP raise :class:`Interrupted` once (main thread only).
+    """Within the block, SIGINT, SIGTERM, SIGHUP and SIGQUIT raise :class:`Interrupted` once (main thread only).
 
     Later signals are recorded and ignored: the glide to rest already goes as fast as the limits allow, and torque
     off mid-pose would let the arms drop. A SIGHUP that was ignored when the block began (``nohup``) stays ignored.

@@ -8,8 +8,8 @@ was made at. The clock is ``time.monotonic`` with an absolute schedule; a late t
 while the goal still moves only one limited step from the last goal sent. Simulated backends
 (``realtime = False``) are advanced by ``1 / rate`` per tick instead of waiting.
 
-SIGINT, SIGTERM and SIGHUP raise :class:`~robogest.backends.control.Interrupted` (a KeyboardInterrupt) after the
-robot has glided to rest and torque is off; a second signal does not cut the glide short.
+SIGINT, SIGTERM, SIGHUP and SIGQUIT raise :class:`~robogest.backends.control.Interrupted` (a KeyboardInterrupt) after
+the robot has glided to rest and torque is off; a second signal does not cut the glide short.
 The trajectory must match the robot definition (joints, limits, rest pose; limits come from the robot, never
 the file), and the backend's own guard refuses any goal that still breaks a limit.
 """
@@ -107,7 +107,7 @@ def play(
         A servo or the port failed; the motion was stopped, torque turned off, and the partial
         report is attached as ``error.report``.
     Interrupted
-        SIGINT/SIGTERM/SIGHUP; its ``outcome`` says whether the robot reached rest.
+        SIGINT/SIGTERM/SIGHUP/SIGQUIT; its ``outcome`` says whether the robot reached rest.
     """
     check_matches(trajectory, backend.robot)  # before anything moves
     report = PlaybackReport()

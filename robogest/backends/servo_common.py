@@ -87,6 +87,15 @@ class ServoBackend(Backend):
         at shutdown; :func:`~robogest.backends.player.play` sets it (:meth:`set_control_rate`).
     health_hz : float
         Each servo's temperature, voltage and load are read at this rate (round robin).
+    torque_check_s : float
+        While torque is on, every servo's Torque Enable register is read back at least this often: one sync read
+        of all servos every ``torque_check_ticks`` position reads (control ticks), or sooner when ticks run late
+        and ``torque_check_s`` has passed; without sync read (Dynamixel Protocol 1.0) one servo at a time, each
+        once per ``torque_check_ticks``, spread evenly over them. A servo found limp (a brownout or reset, or
+        another program on the bus switched it off) stops the motion: the servos still holding torque glide to
+        rest, torque goes off, and a BackendError names it; its torque is never switched back on. A read-back that
+        gets no reply is repeated on the next tick, so with one lost reply a limp servo is still found within
+        0.2 s. 0 turns the check off.
     max_temperature_c : float
         Stop above this temperature.
     voltage_range_v : (float, float), optional
@@ -125,6 +134,7 @@ class ServoBackend(Backend):
         lost_after_s: float = 0.15,
         control_rate_hz: float = 50.0,
         health_hz: float = 2.0,
+        torque_check_s: float = 0.1,
         max_temperature_c: float = 65.0,
         voltage_range_v: tuple[float, float] | None = None,
         max_load_pct: float | None = None,
@@ -153,6 +163,9 @@ class ServoBackend(Backend):
         self.lost_after_s = lost_after_s
         self.set_control_rate(control_rate_hz)
         self.health_period_s = 1.0 / health_hz if health_hz > 0 else float("inf")
+        if not (math.isfinite(torque_check_s) and torque_check_s >= 0):
+            raise InputError(f"torque_check_s = {torque_check_s!r} must be a finite number of seconds >= 0 (0: off)")
+        self.torque_check_s = float(torque_check_s)
         self.max_temperature_c = max_temperature_c
         self.voltage_range_v = voltage_range_v
         self.max_load_pct = max_load_pct
@@ -196,6 +209,12 @@ class ServoBackend(Backend):
         self._health_idx = 0
         self._next_health = 0.0
         self._health_unread_since: dict[int, float] = {}
+        self._torque_reads = 0  # position reads since the last read-back of every servo's torque
+        self._torque_read_s = 0.0  # time.monotonic() of that read-back
+        self._torque_unread: list[int] = []  # servos whose last torque read-back got no reply: read next tick
+        self._torque_put_off_s: float | None = None  # when a read-back was first put off for a struggling bus
+        #: Servos found with torque off while it was on (:meth:`_maybe_check_torque`); never switched back on.
+        self.limp_ids: list[int] = []
         self._stop_faults: set[str] = set()  # faults noted during the final glide (:meth:`_noted_while_stopping`)
         #: A servo whose health cannot be read for this long stops the motion (seconds).
         self.health_lost_after_s = 2.0
@@ -215,6 +234,12 @@ class ServoBackend(Backend):
     @property
     def lost_after_ticks(self) -> int:
         return max(1, math.ceil(self.lost_after_s * self.control_rate_hz - 1e-9))
+
+    @property
+    def torque_check_ticks(self) -> int:
+        """Position reads (control ticks) between two read-backs of a servo's torque: ``torque_check_s`` at the
+        control rate, at least 1."""
+        return max(1, math.floor(self.torque_check_s * self.control_rate_hz + 1e-9))
 
     # --- family hooks ----------------------------------------------------------------------------
     #: The vendor SDK module: ``PortHandler``, ``PacketHandler``, ``GroupSyncWrite``, ``COMM_SUCCESS`` (the two SDKs
@@ -495,11 +520,7 @@ class ServoBackend(Backend):
             if ok:
                 hw = self._hardware_error(sid, err)
                 if hw:
-                    regname = reg.name if reg else "-"
-                    raise BackendError(
-                        f"{self._who(sid)} reports {hw} (register {regname}, attempt {attempt}/{attempts}); "
-                        "motion stopped, torque off"
-                    )
+                    raise self._fault_error(sid, hw, reg, f"{attempt}/{attempts}")
                 return value
             last = comm
             self.retry_count += 1
@@ -514,6 +535,13 @@ class ServoBackend(Backend):
         regname = reg.name if reg else "-"
         raise BusUnreliableError(
             f"{self._who(sid)}: no valid reply to {what} register {regname} after {attempts} attempts ({last})"
+        )
+
+    def _fault_error(self, sid: int, hw: str, reg: Enum | None, attempt: str) -> BackendError:
+        """The error for a reply whose status byte flags hardware fault ``hw`` (:meth:`_hardware_error`)."""
+        return BackendError(
+            f"{self._who(sid)} reports {hw} (register {reg.name if reg else '-'}, attempt {attempt}); "
+            "motion stopped, torque off"
         )
 
     def read_register(self, sid: int, reg: Enum) -> int:
@@ -560,10 +588,7 @@ class ServoBackend(Backend):
                     continue
                 hw = self._hardware_error(sid, err)
                 if hw and not self._noted_while_stopping(sid, f"reports {hw}"):
-                    raise BackendError(
-                        f"{self._who(sid)} reports {hw} (register {reg.name}, attempt {attempts[sid]}/"
-                        f"{self.retries + 1}); motion stopped, torque off"
-                    )
+                    raise self._fault_error(sid, hw, reg, f"{attempts[sid]}/{self.retries + 1}")
                 out[k] = value
                 if tolerate_missing:
                     self._last_ok_s[k] = now
@@ -758,6 +783,7 @@ class ServoBackend(Backend):
             )
 
     def read_positions(self) -> np.ndarray:
+        trouble = self.retry_count + self.missed_reads
         ticks = self._sync_read(self.REG["present"], tolerate_missing=self._positions_known)
         if not self._positions_known:  # the first read (while connecting) must see every servo
             self._last_ok_s[:] = time.monotonic()
@@ -765,6 +791,7 @@ class ServoBackend(Backend):
             self._miss_attempts[:] = 0
             self._positions_known = True
         self._last_ticks = ticks
+        self._maybe_check_torque(busy=self.retry_count + self.missed_reads > trouble)
         self._maybe_check_health()
         return self.ticks_to_rad(ticks)
 
@@ -807,6 +834,8 @@ class ServoBackend(Backend):
                     raise
                 errors.append(str(e))  # keep turning the others off
         self.torque_enabled = on
+        self._torque_reads, self._torque_read_s, self._torque_unread = 0, time.monotonic(), []
+        self._torque_put_off_s = None
         if errors:
             raise BackendError("torque off failed: " + "; ".join(errors))
 
@@ -851,6 +880,64 @@ class ServoBackend(Backend):
             finally:
                 self.disconnect()
         self.events.extend(f"shutdown: {p}" for p in problems)
+
+    # --- torque read-back --------------------------------------------------------------------------
+    def _maybe_check_torque(self, busy: bool = False) -> None:
+        """Read back Torque Enable of the servos due this tick (see ``torque_check_s``); raise when one is off.
+
+        A servo loses torque without a word on the bus when its supply browns out (it reboots), when another
+        program writes its register, or when its firmware's shutdown trips between two reads; goals written to it
+        then move nothing, and playback would go on as if they did. Skipped while torque is meant to be off and on
+        the final glide to rest (nothing is left to stop). ``busy``: this tick's position read had to re-read or
+        missed a servo; the read-back is then put off to a later tick, for up to ``torque_check_s``, so that a
+        struggling bus's ticks stay short and the next position read comes soon (two missed in a row over
+        ``lost_after_s`` declare a servo lost)."""
+        if not self.torque_enabled or self.stopping or self.torque_check_s <= 0 or not len(self.ids):
+            return
+        ids = [int(i) for i in self.ids]
+        n = self.torque_check_ticks
+        now = time.monotonic()
+        self._torque_reads += 1
+        due = set(self._torque_unread)
+        if self._has_sync_read():  # one transaction for all every n ticks, or torque_check_s when ticks run late
+            if self._torque_reads >= n or now - self._torque_read_s >= self.torque_check_s:
+                due.update(ids)
+                self._torque_reads, self._torque_read_s = 0, now
+        else:  # one transaction per servo: each once per n ticks, spread evenly, so that no tick carries them all
+            tick = self._torque_reads % n
+            due.update(sid for j, sid in enumerate(ids) if j * n // len(ids) == tick)
+        if not due:
+            return
+        asked = sorted(due, key=ids.index)  # bus order: servos answer a sync read in the order asked
+        if busy:
+            self._torque_put_off_s = self._torque_put_off_s or now
+            if now - self._torque_put_off_s < self.torque_check_s:
+                self._torque_unread = asked
+                return
+        self._torque_put_off_s = None
+        reg = self.REG["torque"]
+        got = self._sync_read_group(reg, asked)
+        self._torque_unread = []
+        limp = []
+        for sid in asked:
+            value, ok, err, _ = got.get(sid, (0, False, 0, "no reply"))
+            if not ok:
+                self._torque_unread.append(sid)  # position reads catch a servo that stopped answering
+                continue
+            hw = self._hardware_error(sid, err)
+            if hw:
+                raise self._fault_error(sid, hw, reg, "1/1")
+            if value == 0:
+                limp.append(sid)
+        if limp:
+            self.limp_ids = limp
+            who = "; ".join(self._who(sid) for sid in limp[:4])
+            who += f"; and {len(limp) - 4} more" if len(limp) > 4 else ""
+            raise BackendError(
+                f"{who}: torque found off while robogest held it on (a brownout or reset, or another program on the "
+                "bus switched it off); motion stopped, the servos still holding torque glided to rest, torque off; "
+                "check the servos' power supply and that no other program uses the port"
+            )
 
     # --- health ----------------------------------------------------------------------------------
     def _maybe_check_health(self) -> None:

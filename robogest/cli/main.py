@@ -2,8 +2,8 @@
 
 Exit codes: 0 success; 1 other robogest error; 2 bad input (file, flag, transcript); 3 bad robot/config
 file; 4 safety refusal; 5 hardware or simulator failure; 6 missing optional dependency; 130 Ctrl-C
-(SIGINT), 143 SIGTERM, 129 SIGHUP; 141 stdout closed early (``robogest ... | head``), quietly, as a command killed
-by SIGPIPE would.
+(SIGINT), 143 SIGTERM, 129 SIGHUP, 131 SIGQUIT; 141 stdout closed early (``robogest ... | head``), quietly, as a
+command killed by SIGPIPE would.
 
 When stdout is not a terminal it is line-buffered (each line reaches the pipe when printed) and tables are
 printed as tab-separated lines; ``--json`` on the listing commands prints JSON.
@@ -40,8 +40,8 @@ EPILOG = """exit codes:
   4  safety refusal (e.g. NaN from a generator)
   5  hardware or simulator failure (servo missing, in error, port lost); torque was turned off
   6  optional dependency missing (the message says what to install)
-  130 interrupted (Ctrl-C / SIGINT), 143 SIGTERM, 129 SIGHUP (terminal closed): the robot was sent to rest
-      and torque turned off (the message says if rest could not be reached)
+  130 interrupted (Ctrl-C / SIGINT), 143 SIGTERM, 129 SIGHUP (terminal closed), 131 SIGQUIT (Ctrl-\\):
+      the robot was sent to rest and torque turned off (the message says if rest could not be reached)
   141 stdout closed before the output ended (e.g. `| head`); ends quietly
 
 When stdout is a pipe or file: tables are tab-separated lines, each line is written as soon as it is
@@ -151,8 +151,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM or SIGHUP outside motion: unwinds like Ctrl-C, so half-written outputs are removed on the way out
-    (Python's default for these signals ends the process at once, leaving them). ``exit_code`` is 128 + signum."""
+    """SIGTERM, SIGHUP or SIGQUIT outside motion: unwinds like Ctrl-C, so half-written outputs are removed on the way
+    out (Python's default for these signals ends the process at once, leaving them). ``exit_code`` is 128 + signum."""
 
     def __init__(self, signum: int) -> None:
         super().__init__(f"terminated by {signal.Signals(signum).name}")
@@ -161,11 +161,12 @@ class Terminated(KeyboardInterrupt):
 
 @contextlib.contextmanager
 def _terminate_like_ctrl_c() -> Iterator[None]:
-    """Within the block, SIGTERM and SIGHUP raise :class:`Terminated` (main thread; a SIGHUP ignored by ``nohup``
-    stays ignored). During motion the control loop's own handlers take over and end at rest."""
+    """Within the block, SIGTERM, SIGHUP and SIGQUIT raise :class:`Terminated` (main thread; a signal ignored when it
+    began, as SIGHUP under ``nohup``, stays ignored). During motion the control loop's own handlers take over and end
+    at rest."""
     taken = {}
     if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None), getattr(signal, "SIGQUIT", None)):
             if sig is None or signal.getsignal(sig) is signal.SIG_IGN:
                 continue
             taken[sig] = signal.signal(sig, _raise_terminated)
@@ -194,7 +195,7 @@ def _run(argv: Sequence[str] | None) -> int:
     except RobogestError as e:
         print(f"robogest: error: {e}", file=sys.stderr)
         return e.exit_code
-    except KeyboardInterrupt as e:  # Ctrl-C, or SIGINT/SIGTERM/SIGHUP during motion (robogest.backends.control)
+    except KeyboardInterrupt as e:  # Ctrl-C, or SIGINT/SIGTERM/SIGHUP/SIGQUIT in motion (robogest.backends.control)
         with contextlib.suppress(OSError):  # after SIGHUP the terminal may be gone
             print(f"robogest: {e if str(e) else 'interrupted'}", file=sys.stderr)
         return int(getattr(e, "exit_code", 130))

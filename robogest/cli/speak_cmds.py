@@ -30,8 +30,9 @@ SPEAK_EPILOG = """examples:
 With --backend sim (the default) nothing moves but the MuJoCo model; with dynamixel/feetech the robot's
 bus section gives ids and models, --port/--baud override it. Every command goes through the safety layer
 (joint limits, velocity and acceleration limits, rest in silent pauses) and, at the control rate (--fps),
-the online limiter (position, velocity, acceleration and jerk); on a crash, Ctrl-C, SIGTERM or SIGHUP the
-robot glides to rest and torque is turned off.
+the online limiter (position, velocity, acceleration and jerk); on a crash, Ctrl-C, Ctrl-\\, SIGTERM or SIGHUP
+the robot glides to rest and torque is turned off, and so it does, naming the servo (exit 5), when a servo is found
+in error, lost, or limp (its torque off: a brownout, or another program on the bus).
 """
 
 

@@ -3,7 +3,8 @@
 :class:`Robot` owns one :class:`~robogest.backends.control.ControlLoop` (the one player: every goal passes its
 online position/velocity/acceleration/jerk limiter) for its whole life. Torque goes on when the session opens
 and stays on between utterances, holding rest or playing the idle motion; it goes off only when the session
-closes, on an unrecoverable backend error, or on SIGINT/SIGTERM/SIGHUP, always after the glide to rest.
+closes, on an unrecoverable backend error (a servo lost, in error or found limp, also between utterances: the next
+call raises it), or on SIGINT/SIGTERM/SIGHUP/SIGQUIT, always after the glide to rest.
 
 Utterances:
 

@@ -158,7 +158,9 @@ class VirtualBus:
         self.stats = {"packets_in": 0, "packets_out": 0, "bytes_in": 0, "bytes_out": 0, "bad_checksum": 0}
         self._pending_faults = sorted(
             [(t, "hw", sid, kinds) for sid, kinds, t in self.faults.hwerrors]
-            + [(t, "vanish", sid, ()) for sid, t in self.faults.vanish],
+            + [(t, "vanish", sid, ()) for sid, t in self.faults.vanish]
+            + [(t, "torqueoff", sid, ()) for sid, t in self.faults.torqueoff]
+            + [(t, "reboot", sid, ()) for sid, t in self.faults.reboot],
             key=lambda f: f[0],
         )
         self.disconnected = False
@@ -263,24 +265,42 @@ class VirtualBus:
     def _apply_timed_faults(self, t: float) -> None:
         while self._pending_faults and self._pending_faults[0][0] <= t:
             _, kind, sid, kinds = self._pending_faults.pop(0)
+            if sid is None:  # torqueoff=all / reboot=all
+                for s in self.servos:
+                    self.inject_now(kind, s.id, kinds)
+                continue
             try:
-                servo = self.servo(sid)
+                self.servo(sid)
             except KeyError:
                 self._note(f"fault for id {sid} ignored: no such servo")
                 continue
-            with self._lock:
-                if kind == "hw":
-                    for k in kinds:
-                        servo.inject(k)
-                    self._note(f"injected hardware error {'+'.join(kinds)} on id {sid}")
-                else:
-                    servo.vanished = True
-                    self._note(f"injected: id {sid} vanished")
+            self.inject_now(kind, sid, kinds)
         if self.faults.disconnect_at_s is not None and t >= self.faults.disconnect_at_s and not self.disconnected:
             with self._lock:
                 self._note("injected: port disconnected")
                 self.disconnected = True
                 self._close_fds()
+
+    def inject_now(self, kind: str, sid: int, kinds: tuple[str, ...] = ()) -> None:
+        """Apply one timed fault to servo ``sid`` now: ``hw`` (latch hardware errors ``kinds``), ``vanish``,
+        ``torqueoff`` (torque switched off, as by another program on the bus) or ``reboot`` (a brownout)."""
+        servo = self.servo(sid)
+        with self._lock:
+            if kind == "hw":
+                for k in kinds:
+                    servo.inject(k)
+                self._note(f"injected hardware error {'+'.join(kinds)} on id {sid}")
+            elif kind == "vanish":
+                servo.vanished = True
+                self._note(f"injected: id {sid} vanished")
+            elif kind == "torqueoff":
+                servo._store(servo.spec.reg("torque"), 0)
+                self._note(f"injected: torque of id {sid} switched off")
+            elif kind == "reboot":
+                servo.reboot()
+                self._note(f"injected: id {sid} rebooted (brownout)")
+            else:
+                raise ValueError(f"unknown fault kind {kind!r}")
 
     def _advance(self, now: float) -> None:
         dt = now - self._last_step

@@ -12,6 +12,10 @@ probabilities in [0, 1]):
                         KIND is ``overload``, ``overheating``, ``voltage``, ``encoder`` or ``shock``,
                         several joined with ``+`` (``hwerror=3:overload+voltage@2``)
 ``vanish=ID@T``         servo ID stops answering from time T
+``torqueoff=ID@T``      servo ID's torque goes off at time T, as another program on the bus would switch it
+                        (``torqueoff=all@T``: every servo); it answers on, limp
+``reboot=ID@T``         servo ID reboots at time T, as after a brownout: torque off, RAM registers (goal,
+                        speed cap) back to their defaults, latched errors cleared (``reboot=all@T``: every servo)
 ``disconnect@T``        the whole port goes away at time T (master side closed: clients get I/O errors)
 ``seed=N``              seed of the random faults (default 0), so a run is repeatable
 ======================  ==========================================================================
@@ -30,7 +34,8 @@ _ALIASES = {"overheat": "overheating", "temperature": "overheating", "input_volt
 
 GRAMMAR = (
     "fault spec is a comma-separated list of: noreply=P, drop=P, badcrc=P, delay=MIN[:MAX][/P], "
-    f"hwerror=ID:KIND[+KIND]@T (KIND: {', '.join(HW_KINDS)}), vanish=ID@T, disconnect@T, seed=N; "
+    f"hwerror=ID:KIND[+KIND]@T (KIND: {', '.join(HW_KINDS)}), vanish=ID@T, torqueoff=ID|all@T, reboot=ID|all@T, "
+    "disconnect@T, seed=N; "
     "P in [0, 1], times in seconds, e.g. 'noreply=0.05,hwerror=3:overload@2.0,disconnect@4.0'"
 )
 
@@ -47,6 +52,9 @@ class FaultSpec:
     delay_p: float = 0.0
     hwerrors: list[tuple[int, tuple[str, ...], float]] = field(default_factory=list)
     vanish: list[tuple[int, float]] = field(default_factory=list)
+    #: (servo id, or None for every servo, time): torque switched off / the servo rebooted (a brownout)
+    torqueoff: list[tuple[int | None, float]] = field(default_factory=list)
+    reboot: list[tuple[int | None, float]] = field(default_factory=list)
     disconnect_at_s: float | None = None
     seed: int = 0
 
@@ -93,6 +101,9 @@ class FaultSpec:
         elif key == "vanish":
             sid, _, t = val.partition("@")
             self.vanish.append((_id(sid), _time(t) if t else 0.0))
+        elif key in ("torqueoff", "reboot"):
+            sid, _, t = val.partition("@")
+            getattr(self, key).append((None if sid == "all" else _id(sid), _time(t) if t else 0.0))
         elif key == "seed":
             self.seed = int(val)
         else:
@@ -104,6 +115,8 @@ class FaultSpec:
             parts.append(f"delay={self.delay_min_s}:{self.delay_max_s}/{self.delay_p}")
         parts += [f"hwerror={i}:{'+'.join(k)}@{t}" for i, k, t in self.hwerrors]
         parts += [f"vanish={i}@{t}" for i, t in self.vanish]
+        for key in ("torqueoff", "reboot"):
+            parts += [f"{key}={'all' if i is None else i}@{t}" for i, t in getattr(self, key)]
         if self.disconnect_at_s is not None:
             parts.append(f"disconnect@{self.disconnect_at_s}")
         return ",".join(parts) or "none"

@@ -1,5 +1,5 @@
-"""SIGTERM and SIGHUP outside motion unwind like Ctrl-C: half-written outputs are removed, the exit code is 128 +
-the signal (Python's default for them ended the process at once and left hidden temporary files behind)."""
+"""SIGTERM, SIGHUP and SIGQUIT outside motion unwind like Ctrl-C: half-written outputs are removed, the exit code is
+128 + the signal (Python's default for them ended the process at once and left hidden temporary files behind)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ from robogest.cli.main import main
 from robogest.fileio import atomic_path
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+@pytest.mark.usefixtures("quit_does_not_dump_core")
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT])
 def test_a_signal_mid_write_removes_the_temporary_file_and_exits_128_plus_it(tmp_path, monkeypatch, capsys, sig):
     out = tmp_path / "out.csv"
 

@@ -82,10 +82,11 @@ def _assert_at_rest_torque_off(bus, robot) -> np.ndarray:
     return rec
 
 
-@pytest.mark.parametrize(("name", "code"), [("SIGINT", 130), ("SIGTERM", 143), ("SIGHUP", 129)])
+@pytest.mark.usefixtures("quit_does_not_dump_core")
+@pytest.mark.parametrize(("name", "code"), [("SIGINT", 130), ("SIGTERM", 143), ("SIGHUP", 129), ("SIGQUIT", 131)])
 def test_signal_during_speak_ends_at_rest_with_torque_off_and_one_line(name, code, monkeypatch, capsys):
-    """Ctrl-C, kill, or the terminal/SSH session closing half a second into the motion: one line naming the
-    signal, exit code 128 + signum, the robot back at rest with every servo's torque off."""
+    """Ctrl-C, kill, the terminal/SSH session closing, or Ctrl-\\ half a second into the motion: one line naming
+    the signal, exit code 128 + signum, the robot back at rest with every servo's torque off."""
     import signal
 
     _signal_at(monkeypatch, getattr(signal, name))
@@ -160,7 +161,7 @@ def test_interrupt_when_the_bus_is_gone_says_rest_was_not_reached(monkeypatch, c
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["SIGINT", "SIGHUP"])
+@pytest.mark.parametrize("name", ["SIGINT", "SIGHUP", "SIGQUIT"])
 def test_signal_to_a_background_process_ends_at_rest(name, tmp_path):
     """A background ``robogest speak`` (started with SIGINT ignored, as a shell's ``&`` does) gets ``name``
     mid-motion: it still glides to rest, turns torque off, prints one line and exits with 128 + signum."""
@@ -231,3 +232,41 @@ def test_port_disconnect_mid_speech_stops_with_one_line(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 5 and len(err) == 1 and "lost" in err[0]
     assert elapsed < 30  # it stopped instead of hanging (the 0.2 s figure is measured in the benchmark notes)
+
+
+@pytest.mark.parametrize(("robot_name", "family"), CASES[:2])
+def test_torque_lost_mid_speech_stops_glides_the_others_to_rest_and_names_the_servo(robot_name, family, capsys):
+    """A second client (or a brownout) switches the left shoulder's torque off half a second into the motion: one
+    line naming it, exit 5, the servos still holding torque glide to rest, every torque off; the limp one is never
+    switched back on (it played on for 10 s and exited 0, the joints left limp away from rest)."""
+    robot = find_robot(robot_name)
+    sid = robot.bus.servos["l_shoulder_pitch"].id
+    with VirtualBus(robot) as bus:
+        cut: list[float] = []
+
+        def torque_off_once_moving() -> None:  # timed from the first torque-on, not from bus start (TTS may be slow)
+            deadline = time.monotonic() + 60
+            while not any(s.torque_on for s in bus.servos) and time.monotonic() < deadline:
+                time.sleep(0.01)
+            time.sleep(0.5)
+            cut.append(bus.elapsed_s)
+            bus.inject_now("torqueoff", sid)
+
+        watcher = threading.Thread(target=torque_off_once_moving, daemon=True)
+        watcher.start()
+        rc = main(["speak", "Hello there, this sentence is long enough to be cut off.", "--robot", robot_name,
+                   "--backend", family, "--port", bus.port])  # fmt: skip
+        watcher.join()
+        time.sleep(0.05)
+        rec = bus.record()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 5 and len(err) == 1, err
+    assert err[0].startswith(f"robogest: error: servo id {sid} (joint l_shoulder_pitch): torque found off")
+    k = list(rec["servo_ids"]).index(sid)
+    after = rec["t_s"] >= cut[0] + 0.01
+    assert not rec["torque_on"][after, k].any()  # never switched back on
+    assert not rec["torque_on"][-1].any()
+    backend = get_backend_factory(family)(robot, port=bus.port)
+    rest = backend.rad_to_ticks(robot.rest_q_rad)[np.argsort(backend.ids)]
+    others = np.arange(len(rest)) != k
+    np.testing.assert_allclose(rec["present_ticks"][-1][others], rest[others], atol=0.03 * 4096)

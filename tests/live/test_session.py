@@ -371,3 +371,29 @@ def test_open_after_close_raises_instead_of_doing_nothing():
     with pytest.raises(InputError, match=r"this humanoid_xl430 session was closed; .*make a new Robot\(\.\.\.\)"):
         robot.open()
     assert robot.close() is None  # closing again stays a no-op
+
+
+@pytest.mark.parametrize(("name", "family"), ROBOTS)
+def test_torque_lost_between_utterances_ends_the_session_at_rest_and_the_next_say_names_the_servo(name, family):
+    """The loop holds the robot between utterances: a servo found limp there (a brownout, another program) stops
+    the session like any servo failure (the others glide to rest, torque off) and the next say raises it."""
+    from robogest.errors import BackendError
+
+    cfg = find_robot(name)
+    sid = cfg.bus.servos["l_shoulder_pitch"].id
+    with VirtualBus(cfg) as bus:
+        with Robot(name, backend=family, port=bus.port, **OPTS) as robot:
+            assert robot.say("Hello there!").done
+            backend = _servo_backend(robot)
+            time.sleep(0.2)  # idle motion plays
+            t_cut = bus.elapsed_s
+            bus.inject_now("torqueoff", sid)
+            deadline = time.monotonic() + 30
+            while robot.status()["open"] and time.monotonic() < deadline:
+                time.sleep(0.01)
+            with pytest.raises(BackendError, match=rf"^servo id {sid} \(joint l_shoulder_pitch\): torque found off"):
+                robot.say("Are you still there?")
+        _bus_rest_ok(bus, name, backend)
+        rec = bus.record()
+    k = list(rec["servo_ids"]).index(sid)
+    assert not rec["torque_on"][rec["t_s"] >= t_cut + 0.01, k].any()  # never switched back on

@@ -211,9 +211,28 @@ def test_fault_spec_grammar():
     f = FaultSpec.parse("noreply=0.05,badcrc=0.02,delay=0.01:0.05,hwerror=3:overload@2.0,vanish=5@3.0,disconnect@4.0")
     assert (f.noreply, f.badcrc, f.delay_min_s, f.delay_max_s, f.delay_p) == (0.05, 0.02, 0.01, 0.05, 1.0)
     assert f.hwerrors == [(3, ("overload",), 2.0)] and f.vanish == [(5, 3.0)] and f.disconnect_at_s == 4.0
-    for bad in ("noreply=2", "hwerror=3:melting@1", "bogus=1", "vanish=x@1", "delay=0.5:0.1"):
+    for bad in ("noreply=2", "hwerror=3:melting@1", "bogus=1", "vanish=x@1", "delay=0.5:0.1", "torqueoff=some@1"):
         with pytest.raises(InputError, match="noreply=P"):
             FaultSpec.parse(bad)
+    f = FaultSpec.parse("torqueoff=2@1.5,torqueoff=all@3,reboot=4@2")
+    assert f.torqueoff == [(2, 1.5), (None, 3.0)] and f.reboot == [(4, 2.0)]
+    assert str(f) == "torqueoff=2@1.5,torqueoff=all@3.0,reboot=4@2.0"
+
+
+def test_timed_torque_off_and_reboot_leave_the_servo_limp_and_answering(tmp_path):
+    """A second program switching torque off, and a brownout (reboot: RAM back to defaults), as timed faults."""
+    with VirtualBus(make_robot(tmp_path), "torqueoff=all@0.5,reboot=2@0.5") as bus:
+        port, ph = _dxl(bus, 2.0)
+        for sid in (1, 2, 3):
+            ph.write4ByteTxRx(port, sid, 112, 100)  # Profile Velocity (RAM)
+            ph.write1ByteTxRx(port, sid, 64, 1)
+        assert all(s.torque_on for s in bus.servos)
+        while bus.elapsed_s < 0.6:
+            time.sleep(0.01)
+        assert [ph.read1ByteTxRx(port, sid, 64)[:2] for sid in (1, 2, 3)] == [(0, dxl.COMM_SUCCESS)] * 3
+        assert [ph.read4ByteTxRx(port, sid, 112)[0] for sid in (1, 2, 3)] == [100, 0, 100]
+        port.closePort()
+    assert sum("switched off" in e for e in bus.errors) == 3 and any("rebooted" in e for e in bus.errors)
 
 
 def test_injected_hw_error_sets_alert_and_drops_torque(tmp_path):
