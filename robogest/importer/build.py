@@ -267,16 +267,46 @@ def _standing_keyframe(mj: ET.Element, desc: Description) -> dict[str, float]:
 
 def _settle_rest(yaml_path: Path, parts: Parts, start: dict[str, float], single_arm: bool) -> dict[str, float]:
     """The rest pose: the robot's retargeted image of a person standing with arms hanging (collision-free, inside
-    the limits by a margin), held joints where they stand. A single desk arm copies an arm hanging straight down."""
+    the limits by a margin), held joints where they stand. A single desk arm copies an arm hanging straight down.
+
+    An arm whose elbow bends sideways at joint zero needs its upper-arm twist turned a quarter turn before the
+    elbow can bend forward; the IK cannot find that from zero (the twist does nothing while the arm is straight),
+    so it also starts from the twist at +-pi/2, and each arm keeps the start that copies the person best."""
     from robogest.generators.poses import REST, dofs_to_rotations, pose
     from robogest.motion.human_motion import HumanMotion
     from robogest.retarget import DirectionIK
     from robogest.robot.config import load_robot_config
 
     robot = load_robot_config(yaml_path)
-    frames = np.tile(pose(both_flex=0.05, both_elbow=0.25) if single_arm else REST, (40, 1))
-    motion = HumanMotion(20.0, dofs_to_rotations(frames), np.tile([0.0, 1.0, 0.0], (len(frames), 1)))
-    q = DirectionIK(robot, iterations=REST_ITERATIONS, rest_weight=0.02).retarget(motion, q0=robot.rest_q_rad).q_rad[-1]
+    ik = DirectionIK(robot, iterations=REST_ITERATIONS, rest_weight=0.02)
+    index = {n: i for i, n in enumerate(robot.joint_names)}
+    q = robot.rest_q_rad.copy()
+    for arm in parts.arms:
+        joints = [index[j] for j in arm.joints]
+        sites = {s for role in arm.points for s in (f"{role}_site", f"l_{role}_site", f"r_{role}_site")}
+        vecs = [k for k, v in enumerate(robot.retarget) if v.robot[0] in sites and v.robot[1] in sites
+                and v.human[0][0] == ("l" if arm.part.startswith("left") else "r")]  # fmt: skip
+        best, best_err = None, np.inf
+        # arms held a little further out where hanging closer would touch the body (a hand on a hip gear)
+        for abd in (0.0, 0.15, 0.3):
+            human = pose(both_flex=0.05, both_elbow=0.25) if single_arm else REST + pose(both_abd=abd)
+            motion = HumanMotion(20.0, dofs_to_rotations(np.tile(human, (20, 1))), np.tile([0.0, 1.0, 0.0], (20, 1)))
+            for turn in [0.0] + ([np.pi / 2, -np.pi / 2] if arm.twists else []):
+                q0 = robot.rest_q_rad.copy()
+                if turn:
+                    k = index[arm.twists[0]]
+                    q0[k] = np.clip(q0[k] + turn, robot.q_min_rad[k], robot.q_max_rad[k])
+                res = ik.retarget(motion, q0=q0)
+                err = float(res.direction_error_rad[-1][vecs].sum()) if vecs else 0.0
+                err += 10.0 * ik.in_collision(res.q_rad[-1])  # a rest pose touching itself is a last resort
+                if err < best_err - 1e-3:
+                    best, best_err = res.q_rad[-1], err
+            if best_err < 10.0 or single_arm:
+                break
+        q[joints] = best[joints]
+        if parts.head is not None and arm is parts.arms[0]:
+            head = [index[j] for j in parts.head.joints]
+            q[head] = best[head]
     margin = np.minimum(0.05, 0.25 * (robot.q_max_rad - robot.q_min_rad))
     q = np.clip(np.round(q, 3), robot.q_min_rad + margin, robot.q_max_rad - margin)
     rest = dict(zip(robot.joint_names, (float(v) for v in q), strict=True))

@@ -133,16 +133,13 @@ def own_position_actuators(m, joints: list[str]) -> bool:
 
 
 def start_pose(m, joints: list[str], keyframe: dict[str, float] | None = None) -> dict[str, float]:
-    """Where held joints stay and the rest search starts: a standing keyframe's angle, else joint zero where it lies
-    well inside the range, else the range's middle."""
+    """Where held joints stand and the rest search starts: a standing keyframe's angle, else the pose the
+    description is drawn in (joint zero, moved into the range where it lies outside)."""
     rest = {}
     for jn in joints:
-        lo, hi = m.jnt_range[m.joint(jn).id]
-        if keyframe and jn in keyframe and lo <= keyframe[jn] <= hi:
-            rest[jn] = float(keyframe[jn])
-            continue
-        margin = min(0.1, 0.25 * (hi - lo))
-        rest[jn] = 0.0 if lo + margin <= 0.0 <= hi - margin else round(0.5 * (lo + hi), 4)
+        lo, hi = (float(x) for x in m.jnt_range[m.joint(jn).id])
+        q = keyframe.get(jn, 0.0) if keyframe else 0.0
+        rest[jn] = min(max(q, lo), hi)
     return rest
 
 
@@ -174,10 +171,42 @@ def exclude_touching(mj: ET.Element, m, pose: dict[str, float], warnings: list[s
     if pairs:
         warnings.append(f"{len(pairs)} body pairs overlap at the start pose (e.g. {pairs[0]}): their contacts are "
                         "excluded (<contact><exclude>)")  # fmt: skip
-    if pairs or joined:
+    near = _near_pairs(m)
+    if near:
+        warnings.append(f"{len(near)} body pairs at most {NEAR_HINGES} joints apart (a hand and the gear beside its "
+                        "wrist) cannot meet in a gesture: their contacts are excluded")  # fmt: skip
+    if pairs or joined or near:
         contact = mj.find("contact") if mj.find("contact") is not None else ET.SubElement(mj, "contact")
-        for a, b in sorted(set(pairs) | joined):
+        for a, b in sorted(set(pairs) | joined | near):
             ET.SubElement(contact, "exclude", body1=a, body2=b)
+
+
+#: Bodies with geoms this many hinge joints apart or fewer are neighbours by construction (servo, horn, bracket).
+NEAR_HINGES = 2
+
+
+def _near_pairs(m) -> set[tuple[str, str]]:
+    """Body pairs with geoms, not parent and child (MuJoCo skips those), at most :data:`NEAR_HINGES` hinges apart."""
+    with_geoms = sorted({int(b) for b in m.geom_bodyid if m.body_rootid[b] != 0})
+    up = {}
+    for b in with_geoms:  # body -> {ancestor: hinges between}
+        path, n, a = {}, 0, b
+        while a > 0:
+            path[a] = n
+            n += int(m.body_jntnum[a])
+            a = int(m.body_parentid[a])
+        path[0] = n
+        up[b] = path
+    out = set()
+    for i, a in enumerate(with_geoms):
+        for b in with_geoms[i + 1 :]:
+            if m.body_parentid[a] == b or m.body_parentid[b] == a:
+                continue
+            common = next(x for x in up[a] if x in up[b])
+            hinges = up[a][common] + up[b][common]
+            if 0 < hinges <= NEAR_HINGES and common > 0:
+                out.add(tuple(sorted((m.body(a).name, m.body(b).name))))
+    return out
 
 
 def add_sites(mj: ET.Element, limbs) -> list[tuple[str, str, str, str, float]]:

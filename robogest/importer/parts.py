@@ -28,9 +28,9 @@ SIDES = {
     "right": re.compile(r"(^|[_\W\d])(r|right)([_\W\d]|$)|^right|right$|^r[A-Z]", re.I),
 }
 _ROLE_WORDS = {
-    "shoulder": ("shoulder", "upper_arm", "upperarm"),
-    "elbow": ("elbow", "forearm", "lower_arm", "lowerarm", "bicep"),
-    "wrist": ("wrist",),
+    "shoulder": re.compile(r"shoulder|sho(_|\b)|upper_?arm|omoplate", re.I),
+    "elbow": re.compile(r"elbow|elb(_|\b)|forearm|lower_?arm|bicep", re.I),
+    "wrist": re.compile(r"wrist", re.I),
 }
 
 
@@ -42,6 +42,7 @@ class Limb:
     joints: list[str]
     points: dict[str, tuple[str, np.ndarray]] = field(default_factory=dict)
     reason: str = ""
+    twists: list[str] = field(default_factory=list)  # joints turning about their own bone, shoulder first
 
 
 @dataclass
@@ -142,14 +143,13 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
     rows: list[tuple[str, list[str], str]] = []
     held: dict[str, str] = {}
 
-    # legs: chains ending at the lowest points of the robot
+    # legs: chains ending at the lowest points of the robot, below the body where they meet (the pelvis)
     floor = tree.lo[2] + 0.12 * tree.height
     feet = [leaf for leaf in chains if tree.low(leaf) < floor and len(chains) > 1]
-    upper = [leaf for leaf in chains if leaf not in feet]
-    up_joints = set().union(*(chains[u] for u in upper)) if upper else set()
-    legs = set().union(*(chains[f] for f in feet)) - up_joints if feet else set()
+    legs, hips = _legs(tree, feet, chains)
+    upper = [leaf for leaf in chains if not set(chains[leaf]) <= legs | hips]
     if not upper:  # everything reaches the floor: nothing to gesture with
-        feet, upper, legs = [], list(chains), set()
+        feet, upper, legs, hips = [], list(chains), set(), set()
     for side in ("left", "right", None):
         leg_feet = [f for f in feet if _side(_text(tree, [j for j in chains[f] if j in legs])) == side]
         js = _ordered(tree, {j for f in leg_feet for j in chains[f]} & legs)
@@ -159,6 +159,10 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
                 (label, [tree.name(j) for j in js], "held: the chain ends at the robot's lowest point (a foot)")
             )
             held.update(dict.fromkeys((tree.name(j) for j in js), "leg"))
+    rest_legs = legs - {tree.m.joint(n).id for n in held}
+    if rest_legs:
+        rows.append(("leg", [tree.name(j) for j in _ordered(tree, rest_legs)], "held: below the hips"))
+        held.update(dict.fromkeys((tree.name(j) for j in rest_legs), "leg"))
 
     # the upper body: what every chain shares is the waist; the rest splits into limbs by shared joints
     trunk = set.intersection(*(set(chains[u]) for u in upper)) - legs
@@ -199,7 +203,7 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
                      "held: short chains after a wrist or on the head, or named so"))  # fmt: skip
         held.update(dict.fromkeys((tree.name(j) for j in fingers), "finger"))
     mapped = arm_ids | ({tree.m.joint(n).id for n in head_limb.joints} if head_limb else set())
-    waist = _ordered(tree, trunk - mapped)
+    waist = _ordered(tree, (trunk | hips) - mapped)
     if waist:
         rows.append(("waist", [tree.name(j) for j in waist], "held: shared by every upper-body chain (between "
                      "pelvis and chest); map it with --arm/--head to move it"))  # fmt: skip
@@ -212,6 +216,32 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
         if name not in known:
             raise InputError(f"--hold {name}={q}: {name!r} is not a hinge joint of the model; choose from {joints}")
     return Parts(out_arms, head_limb, held, forward, why, rows)
+
+
+def _legs(tree: _Tree, feet: list[int], chains: dict[int, list[int]]) -> tuple[set[int], set[int]]:
+    """The leg joints (every hinge in the subtrees below the body where the feet's chains meet) and the joints
+    from the root down to that body (a waist above the hips when the root is the chest)."""
+    if len(feet) < 2:
+        return set(), set()
+    m = tree.m
+    paths = []
+    for f in feet:
+        path, b = [], f
+        while b > 0:
+            path.append(b)
+            b = int(m.body_parentid[b])
+        paths.append(path)
+    common = set(paths[0]).intersection(*paths[1:])
+    meet = next((b for b in paths[0] if b in common), 0)
+    tops = {p[p.index(meet) - 1] if meet in p else p[-1] for p in paths}
+    inside: set[int] = set()
+    todo = list(tops)
+    while todo:
+        b = todo.pop()
+        inside.add(b)
+        todo += tree.kids.get(b, [])
+    legs = {j for j in tree.jids if int(m.jnt_bodyid[j]) in inside}
+    return legs, (set(tree.chain(meet)) if meet > 0 else set())
 
 
 def _limbs(tree: _Tree, exclusive: dict[int, list[int]]) -> list[tuple[set[int], list[int]]]:
@@ -286,12 +316,12 @@ def _twist(tree: _Tree, j: int, tip: np.ndarray) -> bool:
 
 
 def _arm(tree: _Tree, joints: set[int], leaves: list[int], forward, left_dir, n_arms: int, label: str) -> Limb:
-    """The arm's main chain (the joints every hand leaf shares), its shoulder/elbow/wrist/hand sites, and why."""
+    """The arm's main chain (to the leaf that reaches farthest: the hand), its shoulder/elbow/wrist/hand sites (a
+    joint turning about its own bone is no site), and why. Joints past the wrist, or named as fingers, are not."""
     m = tree.m
-    main = set.intersection(*(set(tree.chain(lf)) for lf in leaves)) & joints
-    chain = _ordered(tree, main)
-    base = tree.d.xanchor[chain[0]]
-    leaf = max(leaves, key=lambda lf: float(np.linalg.norm(tree.tip(lf, base) - base)))
+    base = tree.d.xanchor[_ordered(tree, joints)[0]]
+    leaf = max(leaves, key=lambda lf: float(np.linalg.norm(tree.tip(lf, base) - base)))  # the hand
+    chain = _ordered(tree, set(tree.chain(leaf)) & joints)
     tip = tree.tip(leaf, tree.d.xanchor[chain[-1]])
     reach = float(np.linalg.norm(tip - base))
     named_fingers = [
@@ -300,19 +330,21 @@ def _arm(tree: _Tree, joints: set[int], leaves: list[int], forward, left_dir, n_
     chain = [j for j in chain if j not in named_fingers]
     tol = max(0.01, 0.08 * reach)
     groups: list[list[int]] = []
+    lead: list[int] = []  # twists before the first point (a desk arm's base pan): arm joints, not sites
     for j in chain:
-        if _twist(tree, j, tip) and groups:
-            groups[-1].append(j)
+        if _twist(tree, j, tip):
+            (groups[-1] if groups else lead).append(j)
             continue
         if groups and np.linalg.norm(tree.d.xanchor[j] - tree.d.xanchor[groups[-1][0]]) < tol:
             groups[-1].append(j)
         else:
             groups.append([j])
     names = [" ".join(f"{tree.name(j)} {m.body(m.jnt_bodyid[j]).name}".lower() for j in g) for g in groups]
-    said = {r: [i for i, n in enumerate(names) if any(w in n for w in ws)] for r, ws in _ROLE_WORDS.items()}
+    said = {r: [i for i, n in enumerate(names) if pat.search(n)] for r, pat in _ROLE_WORDS.items()}
     roles: dict[str, int] = {}
-    if said["shoulder"] and said["elbow"] and said["shoulder"][-1] < said["elbow"][0]:
-        roles = {"shoulder": said["shoulder"][-1], "elbow": said["elbow"][0]}
+    if said["shoulder"] and said["elbow"] and said["shoulder"][0] < said["elbow"][0]:
+        elbow = said["elbow"][0]
+        roles = {"shoulder": max(i for i in said["shoulder"] if i < elbow), "elbow": elbow}
         wrist = [i for i in said["wrist"] if i > roles["elbow"]]
         if wrist:
             roles["wrist"] = wrist[0]
@@ -322,14 +354,17 @@ def _arm(tree: _Tree, joints: set[int], leaves: list[int], forward, left_dir, n_
         roles = {r: i + first for i, r in enumerate(("shoulder", "elbow", "wrist")) if i + first < len(groups)}
         how = "roles from the points where the chain bends, in order"
     last = max(roles.values())
-    arm_joints = [j for g in groups[: last + 1] for j in g]
+    arm_joints = lead + [j for g in groups[: last + 1] for j in g]
+    # a 2-DoF wrist whose second axis sits a little further on: named so, it still gestures
+    arm_joints += [j for g in groups[last + 1 :] for j in g if _ROLE_WORDS["wrist"].search(tree.name(j))]
     points = {r: tree.local(int(m.jnt_bodyid[groups[i][0]]), tree.d.xanchor[groups[i][0]]) for r, i in roles.items()}
     points["hand"] = tree.local(leaf, tip)
     side = label.split()[0] if label.endswith("arm") and label != "arm" else ""
     where = ", ".join(f"{r} at {tree.name(groups[i][0])}" for r, i in roles.items())
     reason = f"{'named ' + side + '; ' if side else ''}{how}: {where}, hand at the end of {m.body(leaf).name}"
     part = f"{side} arm".strip() if side else "arm"
-    limb = Limb(part, [tree.name(j) for j in arm_joints], points, reason)
+    twists = [tree.name(j) for j in arm_joints if _twist(tree, j, tip)]
+    limb = Limb(part, [tree.name(j) for j in arm_joints], points, reason, twists)
     if label.endswith("(given)"):
         limb.part = label.removesuffix(" (given)")
         limb.reason = "given on the command line; " + reason
@@ -352,7 +387,7 @@ def _head(tree: _Tree, head, forward: np.ndarray, arm_ids: set[int]) -> Limb | N
     points = {
         "neck": tree.local(int(m.body_parentid[m.jnt_bodyid[first]]), tree.d.xanchor[first]),
         "head": tree.local(body, top),
-        "face": tree.local(body, top + size * forward),
+        "face": tree.local(body, top + size * (0.78 * forward + np.array([0.0, 0.0, 0.62]))),  # as a person's nose
     }
     return Limb("head", [tree.name(j) for j in chain], points, "the chain above the shoulders" +
                 (" (named so)" if _WORDS["head"].search(_text(tree, chain)) else ""))  # fmt: skip
