@@ -139,7 +139,7 @@ def _build(desc: Description, name: str, out_yaml: Path, model_dir: Path, stagin
     vectors = mdl.add_sites(mj, limbs)
     velocity = _velocities(desc, joints)
     if desc.kind == "mjcf" and mdl.own_position_actuators(m, joints):
-        guesses.append("the model's own position actuators are kept")
+        mdl.adopt_actuators(mj, m, joints, guesses)
     else:
         if desc.kind == "mjcf":
             guesses.append("the model's actuators are not one position servo per hinge: replaced by servo-like ones")

@@ -232,8 +232,9 @@ def _repair_urdf(desc: Description) -> None:
         inertial = link.find("inertial")
         mass = inertial.find("mass") if inertial is not None else None
         if inertial is not None and (mass is None or _num(mass, "value", 0.0) <= 0):
-            link.remove(inertial)
+            link.remove(inertial)  # MuJoCo gives a massless link a small mass of its own
             inertial = None
+            light.append(link.get("name", "?"))
         if inertial is not None:
             inertia = inertial.find("inertia")
             if inertia is None or min(_num(inertia, k, 0.0) for k in ("ixx", "iyy", "izz")) <= 0:
@@ -244,7 +245,9 @@ def _repair_urdf(desc: Description) -> None:
                               ixy="0", ixz="0", iyz="0")  # fmt: skip
                 light.append(link.get("name", "?"))
     if light:
-        warn(f"links {light} have zero inertia: given a small one (the sim needs it; retargeting does not)")
+        warn(
+            f"links {light} have zero mass or zero inertia: given a small one (the sim needs it; retargeting does not)"
+        )
 
 
 def _servo_models(desc: Description) -> dict[str, str]:

@@ -132,6 +132,34 @@ def own_position_actuators(m, joints: list[str]) -> bool:
     return m.nu == len(joints)
 
 
+def adopt_actuators(mj: ET.Element, m, joints: list[str], warnings: list[str]) -> None:
+    """Keep the model's own position servos, with their control range cut to the joint's range (a servo is never
+    sent past its joint) and, where the joint has none, damping and armature sized from the servo's force limit."""
+    act_of = {m.joint(int(m.actuator_trnid[a, 0])).name: a for a in range(m.nu)}
+    sized = []
+    for el in mj.iter("joint"):
+        jn = el.get("name")
+        if jn not in joints:
+            continue
+        j, a = m.joint(jn).id, act_of[jn]
+        effort = float(m.actuator_forcerange[a][1])
+        if m.dof_damping[m.jnt_dofadr[j]] <= 0 or m.dof_armature[m.jnt_dofadr[j]] <= 0:
+            el.set("damping", f"{effort / DEFAULT_VELOCITY_RAD_S:.4g}")
+            el.set("armature", f"{0.006 * effort / DEFAULT_EFFORT_NM:.4g}")
+            sized.append(jn)
+    lo_hi = {jn: m.jnt_range[m.joint(jn).id] for jn in joints}
+    for a_el in (x for acts in mj.findall("actuator") for x in acts):
+        jn = a_el.get("joint")
+        if jn in lo_hi:
+            a_el.set("ctrlrange", f"{lo_hi[jn][0]:.10g} {lo_hi[jn][1]:.10g}")
+            a_el.attrib.pop("inheritrange", None)
+            a_el.set("ctrllimited", "true")
+    warnings.append("the model's own position servos are kept (control ranges cut to the joint ranges)")
+    if sized:
+        warnings.append(f"{len(sized)} joints had no damping or armature (e.g. {sized[0]!r}): sized from their "
+                        "servo's force limit, like an STS3215")  # fmt: skip
+
+
 def start_pose(m, joints: list[str], keyframe: dict[str, float] | None = None) -> dict[str, float]:
     """Where held joints stand and the rest search starts: a standing keyframe's angle, else the pose the
     description is drawn in (joint zero, moved into the range where it lies outside)."""

@@ -179,7 +179,10 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
                          "name the arm joints with --arm left=J1,J2,... --arm right=...")  # fmt: skip
     forward, why = _forward(tree, arms, feet, chains, legs, overrides.get("forward"))
     left_dir = np.cross([0.0, 0.0, 1.0], forward)
-    out_arms = [_arm(tree, joints_, leaves, forward, left_dir, len(arms), label) for joints_, leaves, label in arms]
+    given = {side: {tree.m.joint(n).id for n in names} for side, names in (overrides.get("arms") or {}).items()}
+    out_arms = [
+        _arm(tree, joints_, leaves, len(arms), label, given.get(label.split()[0])) for joints_, leaves, label in arms
+    ]
     if len(out_arms) == 2 and out_arms[0].part == out_arms[1].part:  # no names: the side is where it sits
         a, b = out_arms
         base = [tree.d.xanchor[tree.m.joint(x.joints[0]).id] @ left_dir for x in (a, b)]
@@ -315,13 +318,15 @@ def _twist(tree: _Tree, j: int, tip: np.ndarray) -> bool:
     return bool(n > 1e-6 and abs(tree.d.xaxis[j] @ v / n) > 0.9)
 
 
-def _arm(tree: _Tree, joints: set[int], leaves: list[int], forward, left_dir, n_arms: int, label: str) -> Limb:
+def _arm(tree: _Tree, joints: set[int], leaves: list[int], n_arms: int, label: str, given: set[int] | None) -> Limb:
     """The arm's main chain (to the leaf that reaches farthest: the hand), its shoulder/elbow/wrist/hand sites (a
     joint turning about its own bone is no site), and why. Joints past the wrist, or named as fingers, are not."""
     m = tree.m
     base = tree.d.xanchor[_ordered(tree, joints)[0]]
     leaf = max(leaves, key=lambda lf: float(np.linalg.norm(tree.tip(lf, base) - base)))  # the hand
     chain = _ordered(tree, set(tree.chain(leaf)) & joints)
+    if given:  # the arm named on the command line: those joints and no others gesture
+        chain = [j for j in chain if j in given]
     tip = tree.tip(leaf, tree.d.xanchor[chain[-1]])
     reach = float(np.linalg.norm(tip - base))
     named_fingers = [
