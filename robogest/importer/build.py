@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from robogest.errors import InputError
+from robogest.fileio import write_error
 from robogest.importer import model as mdl
 from robogest.importer.description import Description, confined, read_description
 from robogest.importer.meshes import stage_meshes
@@ -81,6 +82,9 @@ def import_description(
     staging = Staging(model_dir, out_yaml)
     try:
         return _build(desc, name, out_yaml, model_dir, staging, overrides)
+    except OSError as e:  # reads are InputErrors already: this is a write (a full disk)
+        staging.abort()
+        raise write_error(model_dir, e) from None
     except BaseException:
         staging.abort()
         raise

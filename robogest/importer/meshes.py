@@ -70,13 +70,16 @@ def resolve(ref: str, desc: Description, base: Path, recased: list[str]) -> Path
 def copy_confined(src: Path, dst: Path) -> None:
     """Copy a regular file of at most :data:`MAX_MESH_BYTES`; the copy gets the user's umask and at most the
     source's read/write permissions (a root-only file never comes out world-readable)."""
-    with open(src, "rb") as f:
-        st = os.fstat(f.fileno())
-        if not stat.S_ISREG(st.st_mode):
-            raise InputError(f"mesh {src}: not a regular file; give a mesh file")
-        if st.st_size > MAX_MESH_BYTES:
-            raise InputError(f"mesh {src}: {st.st_size / 1024**2:.0f} MiB, over {MAX_MESH_BYTES // 1024**2} MiB")
-        data = f.read(MAX_MESH_BYTES + 1)
+    try:
+        with open(src, "rb") as f:
+            st = os.fstat(f.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                raise InputError(f"mesh {src}: not a regular file; give a mesh file")
+            if st.st_size > MAX_MESH_BYTES:
+                raise InputError(f"mesh {src}: {st.st_size / 1024**2:.0f} MiB, over {MAX_MESH_BYTES // 1024**2} MiB")
+            data = f.read(MAX_MESH_BYTES + 1)
+    except OSError as e:
+        raise InputError(f"mesh {src}: cannot read it ({e.strerror or e})") from None
     mask = os.umask(0)
     os.umask(mask)
     fd = os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666 & ~mask & stat.S_IMODE(st.st_mode))
