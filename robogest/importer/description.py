@@ -160,6 +160,11 @@ def _expand_xacro(path: Path, roots: list[Path]) -> str:
         except InputError:
             raise
         except Exception as e:  # xacro raises XacroException, NameError, ExpatError... for a broken file
+            inner = e
+            while inner is not None and not isinstance(inner, InputError):  # ours, wrapped by xacro
+                inner = getattr(inner, "exc", None) or inner.__cause__ or inner.__context__
+            if inner is not None:
+                raise inner from None
             raise InputError(
                 f"{path}: xacro cannot expand it: {' '.join(str(e).split()) or type(e).__name__}"
             ) from None

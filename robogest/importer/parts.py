@@ -165,7 +165,11 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
         held.update(dict.fromkeys((tree.name(j) for j in rest_legs), "leg"))
 
     # the upper body: what every chain shares is the waist; the rest splits into limbs by shared joints
-    trunk = set.intersection(*(set(chains[u]) for u in upper)) - legs
+    # a leaf whose joints all lie on another leaf's chain (a servo horn, a sensor) says nothing about the branches
+    tips = [u for i, u in enumerate(upper) if not any(set(chains[u]) < set(chains[v]) or
+                                                       (set(chains[u]) == set(chains[v]) and k < i)
+                                                       for k, v in enumerate(upper))]  # fmt: skip
+    trunk = set.intersection(*(set(chains[u]) for u in tips)) - legs
     limbs = _limbs(tree, {u: [j for j in chains[u] if j not in trunk and j not in legs] for u in upper})
     if len(limbs) <= 1 and trunk:  # one chain (a desk arm): the shared joints are the arm's
         limbs = _limbs(tree, {u: [j for j in chains[u] if j not in legs] for u in upper})
