@@ -238,6 +238,7 @@ def _mjcf_includes(desc: Description) -> None:
         desc.path = target
         desc.root = ET.fromstring(read_text_capped(target, what="MJCF include"))
         root, base = desc.root, target.parent
+    _drop_scene_contacts(desc)
     for _ in range(8):
         parents = [(p, el) for p in root.iter() for el in list(p) if el.tag == "include"]
         if not parents:
@@ -249,6 +250,21 @@ def _mjcf_includes(desc: Description) -> None:
             parent.remove(el)
             for k, child in enumerate(list(inc)):
                 parent.insert(i + k, child)
+
+
+def _drop_scene_contacts(desc: Description) -> None:
+    """Contact pairs naming geoms the robot file lacks (its scene's floor) go with the scene."""
+    geoms = {g.get("name") for g in desc.root.iter("geom")}
+    bodies = {b.get("name") for b in desc.root.iter("body")}
+    dropped = 0
+    for contact in desc.root.findall("contact"):
+        for el in list(contact):
+            names = [(el.get(k), geoms) for k in ("geom1", "geom2")] + [(el.get(k), bodies) for k in ("body1", "body2")]
+            if any(n is not None and n not in known for n, known in names):
+                contact.remove(el)
+                dropped += 1
+    if dropped:
+        desc.warnings.append(f"{dropped} contact pairs with the scene (its floor) dropped: the scene is written anew")
 
 
 def _standing_keyframe(mj: ET.Element, desc: Description) -> dict[str, float]:
