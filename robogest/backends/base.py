@@ -5,7 +5,9 @@ Backends speak radians at the joint; ticks, offsets and gearing stay inside each
 The last step before the hardware is :meth:`Backend.write_goal`, and it is concrete: every goal, whatever made
 it (a trajectory file, the Python API, a live stream, the shutdown ramp), is checked against the robot
 definition alone (finite, inside the joint limits, no faster than the velocity limit from the last goal sent)
-before a subclass's :meth:`Backend._send_goal` may write anything.
+before a subclass's :meth:`Backend._send_goal` may write anything. A held joint
+(:attr:`~robogest.robot.config.JointConfig.held`) is only ever commanded to its rest angle: a goal may bring it
+closer (a joint found elsewhere at connect glides onto it), never farther.
 """
 
 from __future__ import annotations
@@ -28,9 +30,13 @@ GOAL_POS_TOL_RAD = 1e-9
 GOAL_STEP_RTOL, GOAL_STEP_ATOL_RAD = 1e-6, 1e-9
 
 
-def guard_limits(robot: RobotConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(q_min_rad, q_max_rad, v_max_rad_s)``, each ``(J,)``, read-only: what :func:`check_goal` compares with."""
-    arrays = (robot.q_min_rad, robot.q_max_rad, robot.v_max_rad_s)
+GuardLimits = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def guard_limits(robot: RobotConfig) -> GuardLimits:
+    """``(q_min_rad, q_max_rad, v_max_rad_s, rest_q_rad, held_mask)``, each ``(J,)``, read-only: what
+    :func:`check_goal` compares with."""
+    arrays = (robot.q_min_rad, robot.q_max_rad, robot.v_max_rad_s, robot.rest_q_rad, robot.held_mask)
     for a in arrays:
         a.setflags(write=False)
     return arrays
@@ -42,12 +48,13 @@ def check_goal(
     reference_rad: np.ndarray,
     period_s: float,
     source: str = "",
-    limits: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    limits: GuardLimits | None = None,
 ) -> np.ndarray:
     """The goal guard: return ``q_rad`` as a float array, or raise if any joint's goal is unsafe.
 
     Only the robot definition counts: a goal must be finite, inside ``[lower_rad, upper_rad]`` and within
-    ``max_velocity_rad_s * period_s`` of ``reference_rad`` (the last goal sent) on every joint.
+    ``max_velocity_rad_s * period_s`` of ``reference_rad`` (the last goal sent) on every joint; a held joint's goal
+    must lie between ``reference_rad`` and its rest angle (at rest: exactly there).
 
     Parameters
     ----------
@@ -69,7 +76,7 @@ def check_goal(
     SafetyError
         One line naming every offending joint, its value and the limit it breaks.
     """
-    lo, hi, v_max = limits if limits is not None else guard_limits(robot)
+    lo, hi, v_max, rest, held = limits if limits is not None else guard_limits(robot)
     try:
         q = np.array(q_rad, dtype=float)
     except (TypeError, ValueError):
@@ -80,6 +87,12 @@ def check_goal(
     step = np.abs(q - reference_rad)  # NaN/inf in q give NaN/inf here, no warning
     ok = (q >= lo - GOAL_POS_TOL_RAD) & (q <= hi + GOAL_POS_TOL_RAD)
     ok &= step <= step_max * (1 + GOAL_STEP_RTOL) + GOAL_STEP_ATOL_RAD
+    # a held joint: between the last goal and its angle (NaN compares False here too)
+    off_held = held & ~(
+        (q >= np.minimum(reference_rad, rest) - GOAL_POS_TOL_RAD)
+        & (q <= np.maximum(reference_rad, rest) + GOAL_POS_TOL_RAD)
+    )
+    ok &= ~off_held
     if ok.all():  # every comparison with NaN is False, so a finite, in-range, slow goal is the only way here
         return q
     names = robot.joint_names
@@ -92,6 +105,8 @@ def check_goal(
             problems.append(f"{names[j]} = {q[j]} is not finite")
         elif bad_pos[j]:
             problems.append(f"{names[j]} = {q[j]:.4f} rad outside [{lo[j]:.4f}, {hi[j]:.4f}] rad")
+        elif off_held[j]:
+            problems.append(f"{names[j]} = {q[j]:.4f} rad moves a held joint off its angle {rest[j]:.4f} rad")
         else:
             problems.append(
                 f"{names[j]} steps {step[j]:.4f} rad in one {1000 * period_s:.1f} ms tick, limit {step_max[j]:.4f} rad "

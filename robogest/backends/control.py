@@ -336,7 +336,7 @@ class ControlLoop:
             set_rate(self.rate_hz)
         if not getattr(self.backend, "is_connected", False):
             self.backend.connect()
-        q_now = np.clip(self.backend.read_positions(), self.robot.q_min_rad, self.robot.q_max_rad)
+        q_now = _start_pose(self.backend.read_positions(), self.robot, self.period_s)
         self.backend.write_goal(q_now, source="present pose at start")  # hold, so enabling torque does not jump
         self.backend.confirm_goal()  # a sync write is not acknowledged: a servo that missed it would jump
         self.backend.set_torque(True)
@@ -643,6 +643,16 @@ class ControlLoop:
                 self.backend.advance(self.period_s)
 
 
+def _start_pose(q_read_rad: np.ndarray, robot, period_s: float) -> np.ndarray:
+    """The goal that holds the present pose ``(J,)`` at start: the reading, clipped into the limits, with each held
+    joint moved half a tick's allowed step towards its angle (onto it when that close). The goal guard reads the
+    pose again for its reference, and a held joint's goal must not be farther from its angle than that reference:
+    half a step covers the reading's noise (a tick or two) where the reading itself could be refused."""
+    q = np.clip(np.asarray(q_read_rad, dtype=float), robot.q_min_rad, robot.q_max_rad)
+    rest, step = robot.rest_q_rad, 0.5 * robot.v_max_rad_s * period_s
+    return np.where(robot.held_mask, q + np.clip(rest - q, -step, step), q)
+
+
 def go_to_rest(backend: Backend, rate_hz: float | None = None) -> str | None:
     """Glide ``backend`` from its last goal (or present pose) to rest within every limit; the one go-to-rest.
 
@@ -660,7 +670,11 @@ def go_to_rest(backend: Backend, rate_hz: float | None = None) -> str | None:
     a0 = getattr(backend, "last_goal_a_rad_s2", None)
     recent = time.monotonic() - getattr(backend, "last_goal_monotonic_s", -np.inf) <= 2 * backend.control_period_s
     try:
-        q0 = np.asarray(last if last is not None else backend.read_positions(), dtype=float)
+        q0 = (
+            np.asarray(last, dtype=float)
+            if last is not None
+            else _start_pose(backend.read_positions(), backend.robot, backend.control_period_s)
+        )
     except RobogestError as e:
         return f"could not reach rest ({e})"
     moving = last is not None and v0 is not None and (recent or not backend.realtime)

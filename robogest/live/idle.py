@@ -124,9 +124,11 @@ class IdleMotion:
             # idle motion stays subtle on every joint.
             peak = np.abs(off).max(axis=0)
             off *= np.minimum(1.0, self.config.max_joint_rad / np.maximum(peak, 1e-12))
+            off[:, robot.held_mask] = 0.0  # held joints (legs) never breathe
             self._tables.append((off, period))
-        self.lo = robot.q_min_rad + 0.03
-        self.hi = robot.q_max_rad - 0.03
+        # a held joint's band is its angle (the margin would otherwise pull one held near a limit off it)
+        self.lo = np.where(robot.held_mask, self.rest_q_rad, robot.q_min_rad + 0.03)
+        self.hi = np.where(robot.held_mask, self.rest_q_rad, robot.q_max_rad - 0.03)
         self.started_s = 0.0  # envelope origin (loop seconds)
         self.stop_s: float | None = None  # fade-out origin (loop seconds), set when speech is coming
         self.fade_out_s = 0.12

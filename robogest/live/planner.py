@@ -296,6 +296,7 @@ class StreamingPlanner:
             for a, b in rests:  # exactly at rest where the generator rests (the silent-period hint)
                 pinned |= (t >= a) & (t <= b)
             q[pinned] = self.rest
+            q[:, self.limits.held_mask] = self.rest[self.limits.held_mask]  # whatever the retargeter did
             q = self._feasible(np.clip(q, np.minimum(self.lo, self.rest), np.maximum(self.hi, self.rest)), first,
                                pinned)  # fmt: skip
             n = feed.splice(first, q, self.blend_s, pinned=pinned)

@@ -4,7 +4,8 @@ Humans and robots differ in proportions, so positions cannot be copied; directio
 ``retarget`` vector asks the robot link between two sites to point where the human bone between two
 joints points. Damped least squares solves all vectors at once per frame, warm-started from the
 previous frame, with a weak pull towards the rest pose for joints the vectors leave free, and the
-joint limits enforced after every step.
+joint limits enforced after every step. Held joints (a humanoid's legs, ``held: true`` in the YAML) are not
+variables: they stay at their rest angle while the others solve (a vector may still span bodies below them).
 """
 
 from __future__ import annotations
@@ -83,8 +84,12 @@ class DirectionIK(Retargeter):
         self.human_pairs = [v.human for v in robot.retarget]
         self.frame = Rotation.from_euler("xyz", robot.retarget_frame_rpy_rad).as_matrix()  # (3, 3)
         self.weights = np.sqrt(np.array([v.weight for v in robot.retarget]))  # (K,)
-        self.lo, self.hi = robot.q_min_rad, robot.q_max_rad
         self.rest = robot.rest_q_rad
+        held = robot.held_mask
+        # a held joint's limits are its angle: the clip after every step keeps it there
+        self.lo = np.where(held, self.rest, robot.q_min_rad)
+        self.hi = np.where(held, self.rest, robot.q_max_rad)
+        self.free = np.flatnonzero(~held)  # (F,) the joints IK solves for
         # Hinge Jacobians are built from joint axes and anchors (a x (p - anchor)) instead of
         # mj_jacSite: one vectorised cross product per step instead of two MuJoCo calls per site.
         self.jids = np.array([m.dof_jntid[a] for a in self.dadr])  # (J,)
@@ -96,7 +101,7 @@ class DirectionIK(Retargeter):
         if bad:
             raise ConfigError(f"{robot.path}: joints {bad} are not hinge joints in {robot.model_path}; IK needs hinges")
         self._eye3 = np.eye(3)[None]
-        self._eye_j = np.eye(len(robot.joints))
+        self._eye_j = np.eye(len(self.free))
         self.sites = np.array(sorted({s for pair in self.site_ids for s in pair}))  # (S,) unique sites
         self._sa = np.searchsorted(self.sites, [a for a, _ in self.site_ids])  # (K,) index into sites
         self._sb = np.searchsorted(self.sites, [b for _, b in self.site_ids])
@@ -118,7 +123,7 @@ class DirectionIK(Retargeter):
         return d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
 
     def _links(self, q: np.ndarray, with_jac: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        """Robot link directions ``(K, 3)`` and their Jacobians ``(K, 3, J)`` at joint angles ``q (J,)``."""
+        """Robot link directions ``(K, 3)`` and their Jacobians ``(K, 3, F)`` (free joints) at angles ``q (J,)``."""
         m, d = self.model, self.data
         d.qpos[self.qadr] = q
         mujoco.mj_kinematics(m, d)
@@ -128,35 +133,65 @@ class DirectionIK(Retargeter):
         n = v / length
         if not with_jac:
             return n, None
-        axis = d.xaxis[self.jids]  # (J, 3) world joint axes
-        anchor = d.xanchor[self.jids]  # (J, 3)
-        r = p[:, None] - anchor[None]  # (S, J, 3) lever arms
+        jids = self.jids[self.free]
+        axis = d.xaxis[jids]  # (F, 3) world joint axes
+        anchor = d.xanchor[jids]  # (F, 3)
+        r = p[:, None] - anchor[None]  # (S, F, 3) lever arms
         a = axis[None]
-        jp = np.stack(  # (S, J, 3) = axis x lever, zero where the joint does not move the site
+        jp = np.stack(  # (S, F, 3) = axis x lever, zero where the joint does not move the site
             [a[..., 1] * r[..., 2] - a[..., 2] * r[..., 1],
              a[..., 2] * r[..., 0] - a[..., 0] * r[..., 2],
              a[..., 0] * r[..., 1] - a[..., 1] * r[..., 0]],
             axis=-1,
-        ) * self._moves[..., None]  # fmt: skip
-        dv = (jp[self._sb] - jp[self._sa]).transpose(0, 2, 1)  # (K, 3, J)
+        ) * self._moves[:, self.free, None]  # fmt: skip
+        dv = (jp[self._sb] - jp[self._sa]).transpose(0, 2, 1)  # (K, 3, F)
         proj = self._eye3 - n[:, :, None] * n[:, None, :]  # (K, 3, 3) removes the length change
         return n, proj @ dv / length[:, :, None]
+
+    def followable(self) -> np.ndarray:
+        """``(K,)`` bool: retarget vectors that can follow their bone: among the joints that turn the link (at rest),
+        those on the body deepest in the tree are not all held. A finger's or a torso's vector with the waist held
+        is not; an arm's is, whether the waist is held or not (the elbow, not the waist, points the forearm)."""
+        m = self.model
+        depth = np.zeros(m.nbody, dtype=int)
+        for b in range(1, m.nbody):
+            depth[b] = depth[m.body_parentid[b]] + 1
+        n0, _ = self._links(self.rest, with_jac=False)
+        turns = np.zeros((len(n0), len(self.rest)), dtype=bool)  # (K, J)
+        for j in range(len(self.rest)):
+            q = self.rest.copy()
+            q[j] += 1e-4
+            n1, _ = self._links(q, with_jac=False)
+            turns[:, j] = np.abs(n1 - n0).max(axis=1) > 1e-8
+        self._links(self.rest, with_jac=False)
+        jdepth = depth[m.jnt_bodyid[self.jids]]  # (J,)
+        held = self.robot.held_mask
+        out = np.zeros(len(n0), dtype=bool)
+        for k in range(len(n0)):
+            if turns[k].any():
+                deepest = turns[k] & (jdepth == jdepth[turns[k]].max())
+                out[k] = bool((deepest & ~held).any())
+        return out
 
     def solve_frame(self, target: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """One frame: joint angles ``(J,)`` pointing the links along ``target (K, 3)``, from ``q``.
 
         Returns the angles and the link directions ``(K, 3)`` they give.
         """
-        nj = len(q)
+        free = self.free
+        nf = len(free)
         reg = (self.damping**2 + self.rest_weight) * self._eye_j
+        q = np.clip(q, self.lo, self.hi)  # held joints at their angle
         n, jac = self._links(q, with_jac=True)
         for it in range(self.iterations):
             e = ((target - n) * self.weights[:, None]).reshape(-1)  # (3K,)
-            jw = (jac * self.weights[:, None, None]).reshape(-1, nj)  # (3K, J)
-            g = jw.T @ e + self.rest_weight * (self.rest - q)
+            jw = (jac * self.weights[:, None, None]).reshape(-1, nf)  # (3K, F)
+            g = jw.T @ e + self.rest_weight * (self.rest[free] - q[free])
             step = np.linalg.solve(jw.T @ jw + reg, g)
-            q = np.clip(q + step, self.lo, self.hi)
-            last = it == self.iterations - 1 or float(np.abs(step).max()) < self.tolerance_rad
+            q = q.copy()
+            q[free] += step
+            q = np.clip(q, self.lo, self.hi)
+            last = it == self.iterations - 1 or nf == 0 or float(np.abs(step).max()) < self.tolerance_rad
             n, jac = self._links(q, with_jac=not last)
             if last:
                 break

@@ -64,15 +64,14 @@ def validate(name_or_path: str | Path) -> list[Problem]:
 
 def validate_robot(robot: RobotConfig, check_reach: bool = True) -> list[Problem]:
     """All problems of a loaded robot (empty list: it is consistent and safe to play)."""
-    import mujoco
 
     yml = robot.path or Path(f"{robot.name}.yaml")
     mjcf = robot.model_path
     try:
-        m = mujoco.MjModel.from_xml_path(str(mjcf))
-    except Exception as e:  # mujoco raises ValueError with the parser's message
-        msg = " ".join(str(e).split())
-        return [Problem(yml, "model", f"MuJoCo cannot load {mjcf}: {msg}", "fix the MJCF (or the model path)")]
+        m = load_mjcf(robot)
+    except ConfigError as e:
+        msg = str(e).removeprefix(f"{robot.path or robot.name}: key model: ")
+        return [Problem(yml, "model", msg, "fix the MJCF (or the model path)")]
     problems = _servo_problems(robot, yml)
     problems += _joint_problems(robot, m, yml, mjcf)
     if m.opt.timestep > MAX_TIMESTEP_S:
@@ -180,17 +179,91 @@ def require_hardware_safe(robot: RobotConfig, nothing: str = "nothing moved") ->
 
 
 def load_mjcf(robot: RobotConfig):
-    """``robot``'s MuJoCo model, compiled (``mujoco.MjModel``); ConfigError on one line naming the file when MuJoCo
-    cannot load it (its parser's message spans lines)."""
+    """``robot``'s MuJoCo model, compiled (``mujoco.MjModel``): the one loader of the IK, the simulator and the
+    checks. ConfigError on one line naming the file when MuJoCo cannot load it (its parser's message spans lines).
+
+    A floating base (a free joint on a body that carries the robot's joints, as menagerie humanoids have) is welded
+    at standing height (:func:`weld_floating_base`): robogest gestures, it does not balance.
+    """
     import mujoco
 
     try:
-        return mujoco.MjModel.from_xml_path(str(robot.model_path))
+        m = mujoco.MjModel.from_xml_path(str(robot.model_path))
+        return weld_floating_base(m, robot.model_path)
     except ValueError as e:
         msg = " ".join(str(e).split())
         raise ConfigError(
             f"{robot.path or robot.name}: key model: MuJoCo cannot load {robot.model_path}: {msg}"
         ) from None
+
+
+def _lowest_point_z(m, d, geoms: np.ndarray) -> float:
+    """Lowest world z of ``geoms`` (ids) at the pose in ``d`` (after kinematics): exact per shape, meshes by their
+    vertices; planes are skipped."""
+    import mujoco
+
+    t = mujoco.mjtGeom
+    low = np.inf
+    for g in geoms:
+        kind, size, z, rot = m.geom_type[g], m.geom_size[g], d.geom_xpos[g, 2], d.geom_xmat[g].reshape(3, 3)
+        up = rot[2]  # the world z of each geom axis
+        if kind == t.mjGEOM_PLANE:
+            continue
+        if kind == t.mjGEOM_SPHERE:
+            lo = z - size[0]
+        elif kind == t.mjGEOM_CAPSULE:
+            lo = z - abs(up[2]) * size[1] - size[0]
+        elif kind == t.mjGEOM_CYLINDER:
+            lo = z - abs(up[2]) * size[1] - size[0] * np.sqrt(max(0.0, 1.0 - up[2] ** 2))
+        elif kind == t.mjGEOM_ELLIPSOID:
+            lo = z - np.sqrt(np.sum((up * size) ** 2))
+        elif kind == t.mjGEOM_MESH and m.geom_dataid[g] >= 0:
+            mid = m.geom_dataid[g]
+            a, n = m.mesh_vertadr[mid], m.mesh_vertnum[mid]
+            lo = z + float((m.mesh_vert[a : a + n] @ up).min())
+        else:  # box, and anything else by its bounding box
+            half = size if kind == t.mjGEOM_BOX else m.geom_aabb[g, 3:]
+            lo = z - float(np.abs(up) @ half)
+        low = min(low, lo)
+    return float(low)
+
+
+def weld_floating_base(m, path: Path):
+    """``m`` (compiled from ``path``) with each free joint whose body carries hinge joints removed and that body
+    welded to the world standing: at the free joint's pose in the ``home`` keyframe if there is one, else at the
+    body's default pose moved up or down so that the robot's lowest point touches z = 0 (its feet on the floor).
+    Keyframes lose the free joint's entries. A model without such a joint is returned as it is."""
+    import mujoco
+
+    hinge_bodies = {int(m.jnt_bodyid[j]) for j in range(m.njnt) if m.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE}
+    free = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE
+            and any(m.body_rootid[b] == m.body_rootid[m.jnt_bodyid[j]] for b in hinge_bodies)]  # fmt: skip
+    if not free:
+        return m
+    home = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "home")
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)  # qpos0: every free body at its default pose
+    spec = mujoco.MjSpec.from_file(str(path))
+    drop_q, drop_v = [], []
+    for j in free:
+        b, qa = int(m.jnt_bodyid[j]), int(m.jnt_qposadr[j])
+        if home >= 0:
+            pos, quat = m.key_qpos[home, qa : qa + 3].copy(), m.key_qpos[home, qa + 3 : qa + 7].copy()
+        else:
+            pos, quat = m.qpos0[qa : qa + 3].copy(), m.qpos0[qa + 3 : qa + 7].copy()
+            pos[2] -= _lowest_point_z(m, d, np.flatnonzero(m.body_rootid[m.geom_bodyid] == m.body_rootid[b]))
+        body = spec.body(m.body(b).name) if m.body(b).name else spec.bodies[b]
+        joint = next(x for x in body.joints if x.type == mujoco.mjtJoint.mjJNT_FREE)
+        spec.delete(joint)
+        body.pos, body.quat = pos, quat / np.linalg.norm(quat)
+        drop_q += range(qa, qa + 7)
+        drop_v += range(int(m.jnt_dofadr[j]), int(m.jnt_dofadr[j]) + 6)
+    for key in spec.keys:
+        if len(key.qpos) == m.nq:
+            key.qpos = np.delete(np.asarray(key.qpos), drop_q)
+        if len(key.qvel) == m.nv:
+            key.qvel = np.delete(np.asarray(key.qvel), drop_v)
+    return spec.compile()
 
 
 def hardware_problems(robot: RobotConfig) -> list[Problem]:
@@ -419,7 +492,8 @@ def _home_problems(robot: RobotConfig, m, mjcf: Path) -> list[Problem]:
 
 
 def _reach_problems(robot: RobotConfig, yml: Path) -> list[Problem]:
-    """Retarget a short gesture sequence; every vector's link must follow its human bone on average."""
+    """Retarget a short gesture sequence; every vector's link that a joint not held turns must follow its human
+    bone on average (held joints stay at rest throughout)."""
     from robogest.generators.poses import READY, REST, dofs_to_rotations, pose
     from robogest.motion.human_motion import HumanMotion
     from robogest.retarget import DirectionIK
@@ -429,10 +503,12 @@ def _reach_problems(robot: RobotConfig, yml: Path) -> list[Problem]:
     dofs = np.concatenate([np.linspace(a, b, 10) for a, b in itertools.pairwise(keys)])
     motion = HumanMotion(20.0, dofs_to_rotations(dofs), np.tile([0.0, 1.0, 0.0], (len(dofs), 1)))
     try:
-        res = DirectionIK(robot).retarget(motion)
+        ik = DirectionIK(robot)
+        res = ik.retarget(motion)
     except ConfigError as e:
         return [Problem(yml, "retarget", str(e), "fix the named key")]
-    mean_deg = np.degrees(res.direction_error_rad.mean(axis=0))
+    # a vector only held joints turn (the torso's, with the waist held) is not asked to follow
+    mean_deg = np.where(ik.followable(), np.degrees(res.direction_error_rad.mean(axis=0)), 0.0)
     return [
         Problem(
             yml,

@@ -37,6 +37,9 @@ class JointLimits:
         Rest pose, inside ``[q_min, q_max]``. Treated as safe even when it lies inside the margin.
     names : tuple of str, length J or 0
         Joint names, used only in error messages.
+    held_mask : ndarray [shape=(J,)], bool, optional
+        Joints held at their rest angle (a humanoid's legs: :attr:`~robogest.robot.config.JointConfig.held`):
+        their position band is the rest angle alone, so every stage pins them there. Default: none.
     """
 
     q_min_rad: np.ndarray
@@ -45,6 +48,7 @@ class JointLimits:
     a_max_rad_s2: np.ndarray
     rest_q_rad: np.ndarray
     names: tuple[str, ...] = field(default=())
+    held_mask: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         keys = ("q_min_rad", "q_max_rad", "v_max_rad_s", "a_max_rad_s2", "rest_q_rad")
@@ -82,9 +86,14 @@ class JointLimits:
             bad = np.flatnonzero(bad_mask)
             if bad.size:
                 raise InputError(f"JointLimits: {msg}; violated by joints {_joint_list(bad, names)}")
+        held = np.zeros(n, dtype=bool) if self.held_mask is None else np.array(self.held_mask, dtype=bool)
+        if held.shape != (n,):
+            raise InputError(f"JointLimits.held_mask has shape {held.shape}; expected ({n},)")
+        held.setflags(write=False)
         for k, a in arrays.items():
             object.__setattr__(self, k, a)
         object.__setattr__(self, "names", names)
+        object.__setattr__(self, "held_mask", held)
 
     @property
     def n_joints(self) -> int:
@@ -100,10 +109,12 @@ class JointLimits:
             a_max_rad_s2=robot.a_max_rad_s2,
             rest_q_rad=robot.rest_q_rad,
             names=tuple(robot.joint_names),
+            held_mask=robot.held_mask,
         )
 
     def band(self, margin_rad: float) -> tuple[np.ndarray, np.ndarray]:
-        """Position band ``[q_min + margin, q_max - margin]``; a range narrower than ``2·margin`` gives its midpoint.
+        """Position band ``[q_min + margin, q_max - margin]``; a range narrower than ``2·margin`` gives its midpoint,
+        a held joint its rest angle (every stage clamps into this band, so none moves a held joint).
 
         Returns
         -------
@@ -113,7 +124,9 @@ class JointLimits:
         hi = self.q_max_rad - margin_rad
         mid = 0.5 * (self.q_min_rad + self.q_max_rad)
         narrow = lo > hi
-        return np.where(narrow, mid, lo), np.where(narrow, mid, hi)
+        lo, hi = np.where(narrow, mid, lo), np.where(narrow, mid, hi)
+        held = self.held_mask
+        return np.where(held, self.rest_q_rad, lo), np.where(held, self.rest_q_rad, hi)
 
 
 def opencv_sigma(kernel: int) -> float:

@@ -89,6 +89,9 @@ class OnlineLimiter:
         Rest pose: always a valid target even when it lies inside the margin.
     margin_rad : float, radians
         Targets are clamped this far inside the hard limits.
+    held_mask : ndarray [shape=(J,)], bool, optional
+        Joints held at rest (needs ``rest_q_rad``): their target is always rest, so once there they never leave it
+        (one found elsewhere at start glides onto it).
     """
 
     def __init__(
@@ -104,6 +107,7 @@ class OnlineLimiter:
         rest_q_rad: np.ndarray | None = None,
         margin_rad: float = 0.02,
         stop_within_s: float | None = None,
+        held_mask: np.ndarray | None = None,
     ) -> None:
         arrays = [np.array(a, dtype=float) for a in (q_min_rad, q_max_rad, v_max_rad_s, a_max_rad_s2, j_max_rad_s3)]
         n = arrays[0].size
@@ -123,6 +127,11 @@ class OnlineLimiter:
         lo, hi = np.where(lo > hi, mid, lo), np.where(lo > hi, mid, hi)
         if rest is not None:
             lo, hi = np.minimum(lo, rest), np.maximum(hi, rest)
+        if held_mask is not None and np.any(held_mask):
+            held = np.asarray(held_mask, dtype=bool)
+            if rest is None or held.shape != (n,):
+                raise InputError(f"OnlineLimiter: held_mask needs a rest pose and shape ({n},), got {held.shape}")
+            lo, hi = np.where(held, rest, lo), np.where(held, rest, hi)
         self._otg = ruckig.Ruckig(n)
         self._traj = ruckig.Trajectory(n)
         self._inp = self._input(ruckig.ControlInterface.Position)
@@ -151,6 +160,7 @@ class OnlineLimiter:
         return cls(
             robot.q_min_rad, robot.q_max_rad, robot.v_max_rad_s, robot.a_max_rad_s2, robot.j_max_rad_s3,
             period_s, q0_rad, rest_q_rad=robot.rest_q_rad, margin_rad=margin_rad, stop_within_s=stop_within_s,
+            held_mask=robot.held_mask,
         )  # fmt: skip
 
     def reach_rad(self, t_s: float) -> np.ndarray:

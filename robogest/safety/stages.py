@@ -208,6 +208,8 @@ def fit_within_limits(
     g = sparse.vstack([d1, d2], format="csc")
     p = sparse.diags(w, format="csc")
     for j in range(n_j):
+        if limits.held_mask[j]:  # band = its rest angle: track pins it, nothing to fit
+            continue
         c = q0[j]
         # the rows that involve q0 (and the standstill before it) move it to the bounds
         g_lo = np.r_[np.full(n, -vstep[j]), np.full(n, -astep[j])]

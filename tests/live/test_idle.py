@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from robogest.errors import InputError
 from robogest.live.idle import IdleConfig, IdleMotion
+from robogest.retarget import DirectionIK
 from robogest.robot.registry import find_robot, list_robots
 
 IDLE = {name: IdleMotion(find_robot(name)) for name in sorted(list_robots())}
@@ -54,3 +55,16 @@ def test_bad_settings_name_the_fix():
         IdleConfig(breaths_per_min=100)
     with pytest.raises(InputError, match="subtle"):
         IdleConfig(shift_rad=1.0)
+
+
+def test_held_joints_never_breathe():
+    robot = find_robot("humanoid_xl430")
+    joints = [j.model_copy(update={"held": j.name in ("torso_yaw", "l_elbow")}) for j in robot.joints]
+    held_robot = robot.model_copy(update={"joints": joints})
+    # a retargeter that knows nothing of held joints (a plugin's, say): idle motion still keeps them at rest
+    idle = IdleMotion(held_robot, retargeter=DirectionIK(robot))
+    robot = held_robot
+    q = np.array([idle.target(t) for t in np.arange(0, 20, 0.05)])
+    held = robot.held_mask
+    assert np.array_equal(q[:, held], np.broadcast_to(robot.rest_q_rad[held], q[:, held].shape))
+    assert np.ptp(q[:, ~held], axis=0).max() > 0.02  # the others still do

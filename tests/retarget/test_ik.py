@@ -130,3 +130,21 @@ def test_no_commanded_pose_penetrates_the_desk(rng):
     res = ik.retarget(motion)
     assert not any(ik.in_collision(q) for q in res.q_rad)
     assert res.collision_frames.sum() > 3
+
+
+def test_held_joints_stay_at_rest_and_the_others_still_follow(make_robot, rng):
+    """Held joints are no IK variables: exactly at rest in every frame (even warm-started elsewhere), while the
+    free joints still point the links whose chains run through them."""
+    robot = make_robot()
+    held_names = {"torso_yaw", "l_elbow"}
+    joints = [j.model_copy(update={"held": j.name in held_names}) for j in robot.joints]
+    robot = robot.model_copy(update={"joints": joints})
+    held = robot.held_mask
+    keys = random_reachable_dofs(rng, 5)
+    dofs = np.concatenate([np.linspace(a, b, 12) for a, b in itertools.pairwise(keys)])
+    q0 = np.clip(robot.rest_q_rad + 0.4, robot.q_min_rad, robot.q_max_rad)
+    res = DirectionIK(robot, iterations=20).retarget(motion_from_dofs(dofs), q0=q0)
+    assert np.array_equal(res.q_rad[:, held], np.broadcast_to(robot.rest_q_rad[held], res.q_rad[:, held].shape))
+    assert np.ptp(res.q_rad[:, ~held], axis=0).min() > 0.05  # every free joint gestures
+    right_arm = [k for k, v in enumerate(robot.retarget) if v.robot[1] in ("r_elbow_site", "r_wrist_site")]
+    assert np.degrees(res.direction_error_rad[:, right_arm]).max() < 5.0  # nothing held on that chain
