@@ -125,7 +125,7 @@ def _speak(tmp_path, desc, capsys) -> tuple[np.ndarray, object]:
 )
 def test_import_validate_speak(tmp_path, capsys, kind):
     """Through the CLI: import -> validate -> speak --save; some joint of each arm moves >= 0.3 rad, every leg joint
-    <= 0.02 rad, the head moves."""
+    (and every other held joint) <= 0.02 rad, the head moves."""
     if kind == "urdf-x-gripper":
         desc = write_urdf(tmp_path, Options(gripper=True, hand_mesh="STL", floating=True))
     elif kind == "urdf-y-dae":
@@ -139,5 +139,6 @@ def test_import_validate_speak(tmp_path, capsys, kind):
     for side in ("left", "right"):
         assert max(ptp[j] for j in robot.import_record.arms[side]) >= 0.3, side
         assert max(ptp[f"{side}_{j}"] for j in LEG) <= 0.02
+    assert max(ptp[j.name] for j in robot.joints if j.held) <= 0.02, "waist, legs and gripper still"
     assert max(ptp["neck_yaw"], ptp["neck_pitch"]) > 0.05
     assert robot.import_record is not None
