@@ -155,7 +155,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     from robogest.cli.checks import check_outputs
     from robogest.importer import import_description
 
-    check_outputs({"--out": args.out}, {"FILE": args.description})
+    check_outputs({"--out": args.out}, {"description": args.description})
     res = import_description(args.description, args.out, name=args.name, overwrite=args.force,
                              overrides=_overrides(args), search_paths=args.search_path)  # fmt: skip
     print(f"wrote {res.yaml_path}, {res.mjcf_path}, {res.scene_path}")
