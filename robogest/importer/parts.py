@@ -147,6 +147,13 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
     floor = tree.lo[2] + 0.12 * tree.height
     feet = [leaf for leaf in chains if tree.low(leaf) < floor and len(chains) > 1]
     legs, hips = _legs(tree, feet, chains)
+    why_legs = "held: the chain ends at the robot's lowest point (a foot)"
+    if not legs:  # feet off the floor (a humanoid on a pedestal): legs by their names
+        named = [lf for lf, c in chains.items()
+                 if _WORDS["leg"].search(_text(tree, c)) and not _WORDS["arm"].search(_text(tree, c))]  # fmt: skip
+        legs, hips = _legs(tree, named, chains)
+        feet = named if legs else feet
+        why_legs = "held: named as a leg (its foot does not reach the floor)"
     upper = [leaf for leaf in chains if not set(chains[leaf]) <= legs | hips]
     if not upper:  # everything reaches the floor: nothing to gesture with
         feet, upper, legs, hips = [], list(chains), set(), set()
@@ -155,9 +162,7 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
         js = _ordered(tree, {j for f in leg_feet for j in chains[f]} & legs)
         if js:
             label = f"{side} leg" if side else "leg"
-            rows.append(
-                (label, [tree.name(j) for j in js], "held: the chain ends at the robot's lowest point (a foot)")
-            )
+            rows.append((label, [tree.name(j) for j in js], why_legs))
             held.update(dict.fromkeys((tree.name(j) for j in js), "leg"))
     rest_legs = legs - {tree.m.joint(n).id for n in held}
     if rest_legs:
@@ -286,7 +291,8 @@ def _pick(tree: _Tree, limbs, overrides: dict):
             text = _text(tree, _ordered(tree, js))
             base, reach = _reach(tree, js, leaves)
             points = len({tuple(np.round(tree.d.xanchor[j], 2)) for j in js})
-            if points >= 2 and not (_WORDS["head"].search(text) and not _WORDS["arm"].search(text)):
+            named_other = (_WORDS["head"].search(text) or _WORDS["leg"].search(text)) and not _WORDS["arm"].search(text)
+            if points >= 2 and not named_other:
                 scored.append((reach, base, js, leaves, text))
         scored.sort(key=lambda s: -s[0])
         arms = []

@@ -142,3 +142,53 @@ def test_import_validate_speak(tmp_path, capsys, kind):
     assert max(ptp[j.name] for j in robot.joints if j.held) <= 0.02, "waist, legs and gripper still"
     assert max(ptp["neck_yaw"], ptp["neck_pitch"]) > 0.05
     assert robot.import_record is not None
+
+
+def test_xacro_without_the_extra_is_exit_6_with_the_pip_command(tmp_path, monkeypatch, capsys):
+    import sys
+
+    desc = write_xacro(tmp_path, Options(arm_dof=3))
+    monkeypatch.setitem(sys.modules, "xacro", None)  # not installed
+    assert main(["robots", "import", str(desc), "--out", str(tmp_path / "out" / "x.yaml")]) == 6
+    assert "pip install 'robogest[import]'" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_map_file_and_bad_override(tmp_path, capsys):
+    desc = write_urdf(tmp_path, Options(arm_dof=3))
+    m = tmp_path / "map.yaml"
+    m.write_text("head: [neck_pitch]\nforward: '+x'\n")
+    out = tmp_path / "robots" / "m.yaml"
+    assert main(["robots", "import", str(desc), "--out", str(out), "--map", str(m)]) == 0
+    assert load_robot_config(out).import_record.head == ["neck_pitch"]
+    assert main(["robots", "import", str(desc), "--out", str(out), "--force", "--arm", "middle=a,b"]) == 2
+    assert "--arm middle=a,b: write --arm left=J1,J2,..." in capsys.readouterr().err
+    assert main(["robots", "import", str(desc), "--out", str(out), "--force", "--head", "nape"]) == 2
+    assert "--head: ['nape'] are not hinge joints of the model" in capsys.readouterr().err
+
+
+def test_millimetre_meshes_and_a_pedestal(tmp_path):
+    """Hands drawn in millimetres are scaled by 0.001; a humanoid fixed to a `world` link on a pedestal, its feet
+    off the floor, keeps its height, maps both arms and the head, and holds the legs (by their names)."""
+    desc = write_urdf(tmp_path, Options(arm_dof=3, hand_mesh="stl"))
+    import trimesh
+
+    mesh = desc.parent.parent / "meshes" / "hand.stl"
+    big = trimesh.load(str(mesh))
+    big.apply_scale(1000.0)
+    big.export(str(mesh))
+    text = desc.read_text()
+    text = text.replace('<link name="pelvis">', '<link name="world"/><link name="pedestal"><visual><geometry><box '
+                        'size="0.2 0.2 0.6"/></geometry></visual></link><joint name="stand" type="fixed"><parent '
+                        'link="world"/><child link="pedestal"/><origin xyz="0 0 0.3"/></joint><joint name="seat" '
+                        'type="fixed"><parent link="pedestal"/><child link="pelvis"/><origin xyz="0 0 0.35"/></joint>'
+                        '<link name="pelvis">')  # fmt: skip
+    desc.write_text(text)
+    res = import_description(desc, tmp_path / "robots" / "p.yaml")
+    assert any("in millimetres: scaled by 0.001" in g for g in res.guesses)
+    parts = _parts(res)
+    assert parts["left arm"][0] == "left_shoulder_pitch" and parts["right arm"][0] == "right_shoulder_pitch"
+    assert parts["head"] == ["neck_yaw", "neck_pitch"] and parts["left leg"] == [f"left_{j}" for j in LEG]
+    m, _ = _home(load_robot_config(res.yaml_path))
+    hand = m.mesh(0)
+    assert np.ptp(m.mesh_vert[hand.vertadr[0] : hand.vertadr[0] + hand.vertnum[0]], axis=0).max() < 0.1
