@@ -24,6 +24,7 @@ class Options:
     floating: bool = False  # a world link and a floating joint above the pelvis
     messy: bool = False  # reversed limits, velocity/effort 0, zero inertials, gazebo/transmission, fixed links
     servo: str = ""  # a servo model named in the link names (e.g. "XM430")
+    sideways_elbow: bool = False  # the elbow bends sideways at joint zero (its axis along X): the twist must turn
 
 
 def _p(o: Options, x: float, y: float, z: float) -> str:
@@ -101,7 +102,8 @@ def urdf_body(o: Options, mesh_ref: str = "") -> str:
             elbow_parent, elbow_at = f"{side}_upper_arm_twist", (0, 0, -0.1)
         else:
             elbow_parent, elbow_at = f"{side}_upper_arm{servo}", (0, 0, -0.15)
-        w.joint(f"{side}_elbow", elbow_parent, f"{side}_forearm", elbow_at, (0, 1, 0), -2.2, 0.1)
+        elbow_axis = (s, 0, 0) if o.sideways_elbow else (0, 1, 0)
+        w.joint(f"{side}_elbow", elbow_parent, f"{side}_forearm", elbow_at, elbow_axis, -2.2, 0.1)
         w.joint(f"{side}_wrist_pitch", f"{side}_forearm", f"{side}_wrist", (0, 0, -0.13), (0, 1, 0), -1.2, 1.2)
         w.joint(f"{side}_wrist_roll", f"{side}_wrist", f"{side}_hand", (0, 0, -0.01), (0, 0, 1), -1.5, 1.5,
                 velocity=0 if o.messy else 4.0, effort=0 if o.messy else 3.0)  # fmt: skip

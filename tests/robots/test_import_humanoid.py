@@ -104,6 +104,17 @@ def test_overrides_are_kept_on_reimport(tmp_path):
     assert robot.import_record.hold == {"waist_yaw": 0.2}
 
 
+def test_an_elbow_bending_sideways_at_zero_rests_bent_forward(tmp_path):
+    """The elbow's axis points forward at joint zero (it bends sideways there, as ToddlerBot's does); the upper-arm
+    twist must turn for it to bend forward as a person's does, and the import still validates."""
+    from robogest.robot.validate import validate
+
+    res = import_description(write_urdf(tmp_path, Options(sideways_elbow=True)), tmp_path / "robots" / "s.yaml")
+    assert [str(p) for p in validate(res.yaml_path)] == []
+    rest = {j.name: j.rest_rad for j in load_robot_config(res.yaml_path).joints}
+    assert abs(rest["left_upper_arm_yaw"]) > 0.3 and abs(rest["right_upper_arm_yaw"]) > 0.3
+
+
 def _speak(tmp_path, desc, capsys) -> tuple[np.ndarray, object]:
     out = tmp_path / "robots" / "bot.yaml"
     assert main(["robots", "import", str(desc), "--out", str(out)]) == 0, capsys.readouterr().err
