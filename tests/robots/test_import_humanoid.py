@@ -203,3 +203,16 @@ def test_millimetre_meshes_and_a_pedestal(tmp_path):
     m, _ = _home(load_robot_config(res.yaml_path))
     hand = m.mesh(0)
     assert np.ptp(m.mesh_vert[hand.vertadr[0] : hand.vertadr[0] + hand.vertnum[0]], axis=0).max() < 0.1
+
+
+def test_forward_from_the_feet_when_no_name_says_left_or_right(tmp_path):
+    """A Y-forward description whose limbs are named a_/b_ (no left/right): it faces where its feet point, and
+    the arm on its left after the turn is the left arm."""
+    desc = write_urdf(tmp_path, Options(forward="y", arm_dof=3))
+    desc.write_text(desc.read_text().replace("left_", "a_").replace("right_", "b_"))
+    res = import_description(desc, tmp_path / "robots" / "f.yaml")
+    assert any("faces +y: where the feet point" in g for g in res.guesses)
+    parts = _parts(res)
+    assert parts["left arm"][0] == "a_shoulder_pitch" and parts["right arm"][0] == "b_shoulder_pitch"
+    m, d = _home(load_robot_config(res.yaml_path))
+    assert d.site_xpos[m.site("l_shoulder_site").id][1] > 0.1
