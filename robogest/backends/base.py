@@ -87,12 +87,13 @@ def check_goal(
     step = np.abs(q - reference_rad)  # NaN/inf in q give NaN/inf here, no warning
     ok = (q >= lo - GOAL_POS_TOL_RAD) & (q <= hi + GOAL_POS_TOL_RAD)
     ok &= step <= step_max * (1 + GOAL_STEP_RTOL) + GOAL_STEP_ATOL_RAD
-    # a held joint: between the last goal and its angle (NaN compares False here too)
-    off_held = held & ~(
-        (q >= np.minimum(reference_rad, rest) - GOAL_POS_TOL_RAD)
-        & (q <= np.maximum(reference_rad, rest) + GOAL_POS_TOL_RAD)
-    )
-    ok &= ~off_held
+    off_held = np.zeros_like(held)
+    if held.any():  # a held joint: between the last goal and its angle (NaN compares False here too)
+        off_held = held & ~(
+            (q >= np.minimum(reference_rad, rest) - GOAL_POS_TOL_RAD)
+            & (q <= np.maximum(reference_rad, rest) + GOAL_POS_TOL_RAD)
+        )
+        ok &= ~off_held
     if ok.all():  # every comparison with NaN is False, so a finite, in-range, slow goal is the only way here
         return q
     names = robot.joint_names

@@ -296,6 +296,60 @@ def scan(
     return found
 
 
+@dataclass
+class JointServo:
+    """One row of ``servo scan --robot``: the servo a joint's YAML entry expects against what answered at its id.
+
+    ``joint`` is None for an id that answered but no joint has; ``found_model`` is None when nothing answered."""
+
+    joint: str | None
+    id: int
+    expected_model: str | None
+    found_model: str | None
+    ok: bool
+
+    @property
+    def status(self) -> str:
+        if self.joint is None:
+            return "UNEXPECTED (no joint has this id)"
+        if self.found_model is None:
+            return "MISSING (nothing answers at this id)"
+        return "ok" if self.ok else f"WRONG MODEL (expected {self.expected_model})"
+
+    def line(self) -> str:
+        return (
+            f"{self.joint or '-':20s} id {self.id:3d}  expected {self.expected_model or '-':12s} "
+            f"found {self.found_model or '-':12s} {self.status}"
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        return {**asdict(self), "status": self.status.split(" ")[0].lower()}
+
+
+def match_robot(robot: Any, found: list[FoundServo]) -> list[JointServo]:
+    """Per joint of ``robot`` (its ``bus.servos``, YAML order), the expected id and model against ``found``; then
+    every id that answered but no joint has. A model matches by its model number (names differ in spelling)."""
+    from robogest.backends.base import get_backend_factory
+    from robogest.errors import ConfigError
+
+    bus = robot.bus
+    lookup = getattr(get_backend_factory(bus.family), "lookup_model", None)
+    by_id = {f.id: f for f in found}
+    rows = []
+    for joint in robot.joint_names:
+        s = bus.servos[joint]
+        try:
+            number = lookup(s.model, bus.protocol).number if lookup is not None else None
+        except ConfigError:
+            number = None  # a model the backend does not know: `robots validate` says so; compare by name
+        f = by_id.get(s.id)
+        ok = f is not None and (f.model_number == number if number is not None else f.model == s.model)
+        rows.append(JointServo(joint, s.id, s.model, None if f is None else f.model, ok))
+    ids = {s.id for s in bus.servos.values()}
+    rows += [JointServo(None, f.id, None, f.model, False) for f in found if f.id not in ids]
+    return rows
+
+
 # --- doctor ------------------------------------------------------------------------------------------
 @dataclass
 class Finding:

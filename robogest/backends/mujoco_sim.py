@@ -384,9 +384,11 @@ def _for_robot(trajectory: Trajectory, robot: RobotConfig, hold_until_s: float) 
 class _VideoObserver:
     """Renders a frame whenever simulated time reaches the next frame time (a :attr:`MujocoBackend.observers` entry)."""
 
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, writer: _render.VideoWriter, fps: int) -> None:
+    def __init__(
+        self, model: mujoco.MjModel, data: mujoco.MjData, writer: _render.VideoWriter, fps: int, robot: RobotConfig
+    ) -> None:
         self.renderer = _render.make_renderer(model, writer.width, writer.height)
-        self.cam = _render.camera_id(model)
+        self.cam = _render.video_camera(model, data, robot, writer.width, writer.height)
         self.writer = writer
         self.frame_dt = 1.0 / fps
         self.half_step = 0.5 * float(model.opt.timestep)
@@ -492,7 +494,7 @@ def simulate(
     try:
         if video_path is not None:
             writer = _render.VideoWriter(video_path, width, height, video_fps, audio, audio_sr)
-            video = _VideoObserver(model, data, writer, video_fps)
+            video = _VideoObserver(model, data, writer, video_fps, robot)
             backend.observers.append(video)
         if view:
             viewer = _ViewerObserver(model, data)

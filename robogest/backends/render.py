@@ -84,7 +84,50 @@ def camera_id(model: mujoco.MjModel, name: str = CAMERA) -> int:
     return cam if cam >= 0 else int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, FRONT_CAMERA))
 
 
-def render_frame(renderer: mujoco.Renderer, data: mujoco.MjData, camera: int) -> np.ndarray:
+#: Framing of a scene without a named camera: elevation (degrees; negative looks down) and the room left around the
+#: upper body at rest, as a fraction of its larger extent (for gestures: arms raised, a hand to the side).
+FRAMING_ELEVATION_DEG = -10.0
+FRAMING_PAD = 0.3
+
+
+def upper_body_points(model: mujoco.MjModel, data: mujoco.MjData, robot: RobotConfig) -> np.ndarray:
+    """World positions ``(P, 3)`` of the robot's retargeting sites in ``data`` (head, shoulders, elbows, wrists:
+    the upper body a gesture moves), metres."""
+    ids = sorted({mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, s) for v in robot.retarget for s in v.robot})
+    return data.site_xpos[[i for i in ids if i >= 0]].copy()
+
+
+def framing_camera(
+    model: mujoco.MjModel, data: mujoco.MjData, robot: RobotConfig, width: int, height: int
+) -> mujoco.MjvCamera:
+    """A fixed camera facing the robot's front (+X, looking along -X, slightly down) that frames its upper body in
+    ``data`` (:func:`upper_body_points`, with :data:`FRAMING_PAD` of room) in a ``width`` x ``height`` frame."""
+    p = upper_body_points(model, data, robot)
+    if not len(p):  # no site in the model: the bodies' extent
+        p = data.xpos[1:].copy()
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    pad = FRAMING_PAD * max(float((hi - lo).max()), 0.05)
+    half_w, half_h = 0.5 * (hi[1] - lo[1]) + pad, 0.5 * (hi[2] - lo[2]) + pad
+    tan_v = np.tan(np.radians(float(model.vis.global_.fovy)) / 2)
+    tan_h = tan_v * width / height
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    cam.lookat[:] = 0.5 * (lo + hi)
+    cam.azimuth, cam.elevation = 180.0, FRAMING_ELEVATION_DEG
+    cam.distance = max(half_h / tan_v, half_w / tan_h) + 0.5 * (hi[0] - lo[0]) + pad
+    return cam
+
+
+def video_camera(
+    model: mujoco.MjModel, data: mujoco.MjData, robot: RobotConfig, width: int, height: int
+) -> int | mujoco.MjvCamera:
+    """The scene's video camera (:func:`camera_id`) if it has one, else :func:`framing_camera` (an imported robot's
+    MJCF has none)."""
+    cam = camera_id(model)
+    return cam if cam >= 0 else framing_camera(model, data, robot, width, height)
+
+
+def render_frame(renderer: mujoco.Renderer, data: mujoco.MjData, camera: int | mujoco.MjvCamera) -> np.ndarray:
     """One RGB frame ``(H, W, 3)`` uint8 of the current state."""
     renderer.update_scene(data, camera=camera)
     return renderer.render()
@@ -282,7 +325,7 @@ def render_png(
     mujoco.mj_forward(sim.model, data)
     renderer = make_renderer(sim.model, width, height)
     try:
-        rgb = render_frame(renderer, data, camera_id(sim.model))
+        rgb = render_frame(renderer, data, video_camera(sim.model, data, robot, width, height))
     finally:
         renderer.close()
     path = Path(path)

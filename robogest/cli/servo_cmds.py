@@ -43,9 +43,17 @@ def register(subparsers: Any) -> None:
     )
     ss = servo.add_subparsers(dest="servo_command", metavar="ACTION")
     scan = ss.add_parser(
-        "scan", help="find every servo: broadcast ping per protocol and baud rate, the common ones first"
+        "scan",
+        help="find every servo: broadcast ping per protocol and baud rate, the common ones first; with --robot, "
+        "each joint's expected id and model against what answers",
+        description="Without --robot: every servo on the port, at every protocol and baud rate (common ones first). "
+        "With --robot NAME|PATH: at the YAML's bus protocol and baud rate, one row per joint, the id and model "
+        "its bus.servos entry expects against what answers there (ok, MISSING, WRONG MODEL), then any id that "
+        "answers but no joint has (UNEXPECTED); exit code 5 unless every row is ok. For wiring and numbering "
+        "servos with the YAML in hand.",
     )
-    scan.add_argument("--port", required=True)
+    scan.add_argument("--port", help="serial port (required without --robot; with it default the YAML's bus.port)")
+    scan.add_argument("--robot", help="robot name or YAML path: compare the bus with its bus section")
     scan.add_argument("--protocol", choices=_PROTOCOLS, action="append", help="repeatable; default all")
     scan.add_argument("--baud", type=checks.baud, action="append", help="repeatable; default the common ones")
     scan.add_argument(
@@ -176,6 +184,10 @@ def _scan(args: argparse.Namespace) -> int:
 
     from robogest.backends.bringup import scan
 
+    if args.robot is not None:
+        return _scan_robot(args)
+    if args.port is None:
+        raise InputError("servo scan needs --port PATH (or --robot NAME, whose YAML names the port)")
     found = scan(
         args.port, args.protocol, args.baud, max_id=args.max_id, per_id=args.per_id, all_protocols=args.all,
         progress=lambda k, n, what: _status(what, k, n),
@@ -188,6 +200,42 @@ def _scan(args: argparse.Namespace) -> int:
     if not found:
         print(f"no servo answered on {args.port} (check power and wiring; try --per-id)", file=sys.stderr)
         return 1
+    return 0
+
+
+def _scan_robot(args: argparse.Namespace) -> int:
+    """``servo scan --robot``: the robot's bus section against what answers (see the subcommand's description)."""
+    import json
+
+    from robogest.backends.bringup import match_robot, protocol_name, scan
+    from robogest.robot.registry import find_robot
+
+    robot = find_robot(args.robot)
+    if robot.bus is None:
+        raise ConfigError(f"{robot.path or robot.name}: no bus section, so no servos to look for; add one (README)")
+    if args.protocol:
+        raise InputError("servo scan --robot takes the protocol from the YAML's bus section; drop --protocol")
+    port = args.port or robot.bus.port
+    if port is None:
+        raise InputError(f"{robot.path or robot.name}: bus.port is not set; pass --port PATH")
+    proto = protocol_name(robot.bus.family, robot.bus.protocol)
+    bauds = args.baud or [robot.bus.baudrate]
+    found = scan(port, [proto], bauds, max_id=args.max_id, per_id=args.per_id,
+                 progress=lambda k, n, what: _status(what, k, n))  # fmt: skip
+    rows = match_robot(robot, found)
+    if args.json:
+        print(json.dumps([r.as_dict() for r in rows], indent=1))
+    else:
+        print(f"{robot.name}: {proto} at {', '.join(map(str, bauds))} baud on {port}")
+        for r in rows:
+            print(r.line())
+    bad = [r for r in rows if not r.ok]
+    if bad:
+        hint = " (none answered: check power, wiring and the baud rate; `robogest servo scan --port` tries all)"
+        print(f"{len(bad)} of {len(rows)} rows differ from {robot.path or robot.name}" + (hint if not found else ""),
+              file=sys.stderr)  # fmt: skip
+        return 5
+    print(f"all {len(rows)} servos answer with the ids and models the YAML expects")
     return 0
 
 

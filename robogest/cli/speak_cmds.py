@@ -186,10 +186,12 @@ def run_speak(args: argparse.Namespace) -> int:
 
     from robogest.pipeline import speak
     from robogest.robot import find_robot
+    from robogest.robot.validate import require_followable
 
     _check_paths(args, {**speech_inputs(args), "--checkpoint": args.checkpoint})
     _check_export(args)
     robot = find_robot(args.robot)
+    require_followable(robot)
     opts = generator_options(args)
     backend = _hardware_backend(args, robot)
     speech = speech_from_args(args)
@@ -219,6 +221,7 @@ def run_play(args: argparse.Namespace) -> int:
     from robogest.fileio import npz_keys
     from robogest.pipeline import motion_to_trajectory
     from robogest.robot import find_robot
+    from robogest.robot.validate import require_followable
     from robogest.safety import check_limits
     from robogest.trajectory import Trajectory, check_matches
 
@@ -228,6 +231,7 @@ def run_play(args: argparse.Namespace) -> int:
     _check_paths(args, {"MOTION": args.motion, "--audio": args.audio})
     _check_export(args)
     robot = find_robot(args.robot)
+    require_followable(robot)
     backend = _hardware_backend(args, robot)
     audio, sr = None, 16000
     if args.audio:

@@ -64,7 +64,6 @@ def validate(name_or_path: str | Path) -> list[Problem]:
 
 def validate_robot(robot: RobotConfig, check_reach: bool = True) -> list[Problem]:
     """All problems of a loaded robot (empty list: it is consistent and safe to play)."""
-
     yml = robot.path or Path(f"{robot.name}.yaml")
     mjcf = robot.model_path
     try:
@@ -178,6 +177,39 @@ def require_hardware_safe(robot: RobotConfig, nothing: str = "nothing moved") ->
         raise ConfigError(f"{where}: not safe to move real servos with ({nothing}): {summary(problems, where)}")
 
 
+#: Problems of :func:`follow_problems` by robot definition and MJCF content (the check retargets a test gesture,
+#: ~0.1 s; a session that opens the same robot again need not repeat it).
+_FOLLOW_CACHE: dict[tuple[str, str], list[Problem]] = {}
+
+
+def follow_problems(robot: RobotConfig) -> list[Problem]:
+    """The retargeting check of :func:`validate_robot` alone (every retarget vector that a joint not held points
+    follows its bone on a test gesture), cached in memory per robot definition and MJCF file content."""
+    import hashlib
+
+    try:
+        digest = hashlib.sha256(robot.model_path.read_bytes()).hexdigest()
+    except OSError:
+        digest = ""  # the loader names the unreadable file
+    key = (robot.model_dump_json() + str(robot.path), digest)
+    if key not in _FOLLOW_CACHE:
+        _FOLLOW_CACHE[key] = _reach_problems(robot, robot.path or Path(f"{robot.name}.yaml"))
+    return _FOLLOW_CACHE[key]
+
+
+def require_followable(robot: RobotConfig) -> None:
+    """Raise :class:`ConfigError` (exit code 3, one line naming the vectors and the fix) when the robot's links
+    cannot follow the human bones it maps (:func:`follow_problems`): speak, play, serve and a live session would
+    otherwise run with joints that never gesture."""
+    problems = follow_problems(robot)
+    if problems:
+        where = robot.path or robot.name
+        raise ConfigError(
+            f"{where}: refused, the robot fails the retargeting check (nothing was generated or moved): "
+            f"{summary(problems, where)}"
+        )
+
+
 def load_mjcf(robot: RobotConfig):
     """``robot``'s MuJoCo model, compiled (``mujoco.MjModel``): the one loader of the IK, the simulator and the
     checks. ConfigError on one line naming the file when MuJoCo cannot load it (its parser's message spans lines).
@@ -228,6 +260,14 @@ def _lowest_point_z(m, d, geoms: np.ndarray) -> float:
     return float(low)
 
 
+def _spec_body(spec, m, b: int):
+    """The spec's body for model body ``b`` (same order), named if it was not (contact excludes name bodies)."""
+    body = spec.bodies[b]
+    if not body.name:
+        body.name = f"robogest_body_{b}"
+    return body
+
+
 def weld_floating_base(m, path: Path):
     """``m`` (compiled from ``path``) with each free joint whose body carries hinge joints removed and that body
     welded to the world standing: at the free joint's pose in the ``home`` keyframe if there is one, else at the
@@ -252,10 +292,17 @@ def weld_floating_base(m, path: Path):
         else:
             pos, quat = m.qpos0[qa : qa + 3].copy(), m.qpos0[qa + 3 : qa + 7].copy()
             pos[2] -= _lowest_point_z(m, d, np.flatnonzero(m.body_rootid[m.geom_bodyid] == m.body_rootid[b]))
-        body = spec.body(m.body(b).name) if m.body(b).name else spec.bodies[b]
+        body = _spec_body(spec, m, b)
         joint = next(x for x in body.joints if x.type == mujoco.mjtJoint.mjJNT_FREE)
         spec.delete(joint)
         body.pos, body.quat = pos, quat / np.linalg.norm(quat)
+        # MuJoCo skips contacts between a body and its parent, but not when the parent is welded to the world: the
+        # hips would collide with the pelvis they hang from. Exclude those pairs as the floating model did.
+        base = [c for c in range(m.nbody) if m.body_weldid[c] == b]  # the base and what is bolted to it
+        for c in range(m.nbody):
+            if m.body_weldid[c] != b and m.body_parentid[c] in base:
+                for p in base:
+                    spec.add_exclude(bodyname1=_spec_body(spec, m, p).name, bodyname2=_spec_body(spec, m, c).name)
         drop_q += range(qa, qa + 7)
         drop_v += range(int(m.jnt_dofadr[j]), int(m.jnt_dofadr[j]) + 6)
     for key in spec.keys:
