@@ -106,6 +106,7 @@ def _build(desc: Description, name: str, out_yaml: Path, model_dir: Path, stagin
             comp.attrib.pop(k, None)
         comp.set("meshdir", str(assets))
         comp.set("texturedir", str(assets))
+        mj = mdl.normalise_mjcf(mj, desc.path)
         keyframe = _standing_keyframe(mj, desc)
     floating = mdl.weld_free_joints(mj) or desc.floating
     for k in mj.findall("keyframe"):
@@ -113,7 +114,7 @@ def _build(desc: Description, name: str, out_yaml: Path, model_dir: Path, stagin
     m = mdl.compile_xml(mj, desc.path)
     if mdl.fix_millimetres(mj, m, guesses):
         m = mdl.compile_xml(mj, desc.path)
-    for i, el in enumerate(x for x in mj.iter("joint") if not x.get("name")):
+    for i, el in enumerate(x for x in mj.find("worldbody").iter("joint") if not x.get("name")):
         el.set("name", f"joint_{i}")
     m = mdl.compile_xml(mj, desc.path)
     joints = [m.joint(j).name for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]

@@ -54,6 +54,20 @@ def urdf_to_mjcf(root: ET.Element, meshdir: str, source: object) -> ET.Element:
         raise InputError(f"{source}: MuJoCo cannot load it: {' '.join(str(e).split())}") from None
 
 
+def normalise_mjcf(mj: ET.Element, source: object) -> ET.Element:
+    """The MJCF as MuJoCo writes it back: angles in radians (an MJCF's default unit is degrees, and the ranges,
+    sites and keyframe added here are radians), orientations as quaternions, nothing left to a ``<compiler>``
+    setting that would read the additions differently."""
+    import mujoco
+
+    try:
+        spec = mujoco.MjSpec.from_string(ET.tostring(mj, encoding="unicode"))
+        spec.compile()
+        return ET.fromstring(spec.to_xml())
+    except ValueError as e:
+        raise InputError(f"{source}: MuJoCo cannot load it: {' '.join(str(e).split())}") from None
+
+
 def fix_millimetres(mj: ET.Element, m, warnings: list[str]) -> bool:
     """Meshes drawn in millimetres (an extent over :data:`MM_EXTENT_M`) are scaled by 0.001; True if any was."""
     scaled = []

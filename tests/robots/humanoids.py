@@ -167,9 +167,10 @@ def write_xacro(folder: Path, o: Options) -> Path:
     return path
 
 
-def write_mjcf(folder: Path, o: Options) -> Path:
+def write_mjcf(folder: Path, o: Options, degrees: bool = False, actuators: bool = True) -> Path:
     """A menagerie-style ``robot.xml`` (a free joint, its own position actuators, a standing keyframe) and a
-    ``scene.xml`` that includes it, made from the URDF by MuJoCo's own reader; returns the scene."""
+    ``scene.xml`` that includes it, made from the URDF by MuJoCo's own reader (angles in degrees if ``degrees``);
+    returns the scene."""
     import xml.etree.ElementTree as ET
 
     import mujoco
@@ -183,11 +184,16 @@ def write_mjcf(folder: Path, o: Options) -> Path:
     pelvis.set("pos", "0 0 0.5")
     acts = ET.SubElement(mj, "actuator")
     names = [j.get("name") for j in mj.iter("joint")]
-    for jn in names:
+    for jn in names if actuators else []:
         ET.SubElement(acts, "position", name=f"{jn}_servo", joint=jn, kp="30", forcerange="-3 3",
                       ctrlrange="-3.2 3.2")  # fmt: skip
     key = ET.SubElement(ET.SubElement(mj, "keyframe"), "key", name="stand")
     key.set("qpos", " ".join(["0 0 0.5 1 0 0 0"] + ["0"] * len(names)))
+    if degrees:  # MJCF's default angle unit: ranges in degrees, no compiler setting
+        mj.find("compiler").attrib.pop("angle", None)
+        for j in mj.find("worldbody").iter("joint"):
+            if j.get("range"):
+                j.set("range", " ".join(f"{math.degrees(float(x)):.6g}" for x in j.get("range").split()))
     (folder / "robot.xml").write_text(ET.tostring(mj, encoding="unicode"))
     scene = folder / "scene.xml"
     scene.write_text('<mujoco model="scene"><include file="robot.xml"/><worldbody><light pos="0 0 3"/>'
