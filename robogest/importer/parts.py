@@ -227,6 +227,10 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
     for name, q in (overrides.get("hold") or {}).items():
         if name not in known:
             raise InputError(f"--hold {name}={q}: {name!r} is not a hinge joint of the model; choose from {joints}")
+    given = [n for n in (overrides.get("hold") or {}) if held.get(n) is None]
+    if given:
+        rows.append(("held (given)", given, "held at the angle given with --hold"))
+        held.update(dict.fromkeys(given, "given"))
     return Parts(out_arms, head_limb, held, forward, why, rows)
 
 

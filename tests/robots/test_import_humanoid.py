@@ -95,13 +95,15 @@ def test_overrides_are_kept_on_reimport(tmp_path):
     out = tmp_path / "robots" / "o.yaml"
     arms = {"left": ["left_shoulder_pitch", "left_shoulder_roll", "left_elbow"],
             "right": ["right_shoulder_pitch", "right_shoulder_roll", "right_elbow"]}  # fmt: skip
-    import_description(urdf, out, overrides={"arms": arms, "head": ["neck_yaw"], "hold": {"waist_yaw": 0.2}})
+    hold = {"waist_yaw": 0.2, "left_shoulder_roll": 0.3}
+    import_description(urdf, out, overrides={"arms": arms, "head": ["neck_yaw"], "hold": hold})
     res = import_description(urdf, out, overwrite=True)
     assert _parts(res)["left arm"] == arms["left"] and _parts(res)["head"] == ["neck_yaw"]
     robot = load_robot_config(out)
     rest = {j.name: (j.rest_rad, j.held) for j in robot.joints}
     assert rest["waist_yaw"] == (0.2, True) and rest["left_wrist_pitch"][1] and rest["neck_pitch"][1]
-    assert robot.import_record.hold == {"waist_yaw": 0.2}
+    assert rest["left_shoulder_roll"] == (0.3, True), "an arm joint held with --hold"
+    assert robot.import_record.hold == hold
 
 
 def test_an_elbow_bending_sideways_at_zero_rests_bent_forward(tmp_path):
