@@ -25,7 +25,8 @@ def add_parsers(sub: Any) -> None:
         "description",
         type=Path,
         metavar="FILE",
-        help="the robot's URDF, xacro (.xacro) or MJCF (.xml); meshes STL/OBJ/DAE in its folders",
+        help="the robot's URDF, xacro (.xacro) or MJCF (.xml); meshes STL/OBJ/DAE in its folders (xacro and DAE "
+        "need: pip install 'robogest[import]')",
     )
     p.add_argument(
         "--out",
