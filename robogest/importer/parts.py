@@ -358,6 +358,12 @@ def _arm(tree: _Tree, joints: set[int], leaves: list[int], n_arms: int, label: s
             groups[-1].append(j)
         else:
             groups.append([j])
+    if not groups:  # nothing but twists: the first one is the shoulder
+        if not lead:
+            named = sorted(tree.name(j) for j in (given or joints))
+            raise InputError(f"{label}: joints {named} lie on no chain to a hand; name the arm's joints from the "
+                             "shoulder outwards")  # fmt: skip
+        groups, lead = [lead], []
     names = [" ".join(f"{tree.name(j)} {m.body(m.jnt_bodyid[j]).name}".lower() for j in g) for g in groups]
     said = {r: [i for i, n in enumerate(names) if pat.search(n)] for r, pat in _ROLE_WORDS.items()}
     roles: dict[str, int] = {}

@@ -192,6 +192,10 @@ def test_cli_map_file_and_bad_override(tmp_path, capsys):
     assert "--arm middle=a,b: write --arm left=J1,J2,..." in capsys.readouterr().err
     assert main(["robots", "import", str(desc), "--out", str(out), "--force", "--head", "nape"]) == 2
     assert "--head: ['nape'] are not hinge joints of the model" in capsys.readouterr().err
+    gripper = write_urdf(tmp_path / "g", Options(arm_dof=3, gripper=True))
+    args = ["--arm", "left=left_gripper", "--arm", "right=right_gripper"]  # joints, but on no arm's chain
+    assert main(["robots", "import", str(gripper), "--out", str(out), "--force", *args]) == 2
+    assert "left arm (given): joints ['left_gripper'] lie on no chain to a hand" in capsys.readouterr().err
 
 
 def test_millimetre_meshes_and_a_pedestal(tmp_path):
