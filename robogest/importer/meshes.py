@@ -26,7 +26,9 @@ def _candidates(ref: str, desc: Description, base: Path) -> list[Path]:
     if ref.startswith("package://"):
         rel = ref[len("package://") :]
         pkg, _, rest = rel.partition("/")
-        if pkg in ("", ".", "..") or not rest:
+        if pkg == "" and rest:  # package:///meshes/x.stl (CAD exporters): the description's own package
+            return [base / rest] + [r / rest for r in desc.roots]
+        if pkg in (".", "..") or not rest:
             raise InputError(f"{desc.path}: mesh {ref!r}: {pkg!r} is not a package name; write package://PKG/PATH")
         found = find_package(pkg, desc.roots)
         out = [found / rest] if found else []

@@ -114,3 +114,11 @@ def test_full_disk_leaves_nothing(tmp_path, full_disk, capsys):
     with pytest.raises(RobogestError, match=r"cannot write \(No space left on device\)"):
         import_description(urdf, out)
     assert sorted(p.name for p in full_disk.iterdir()) == before
+
+
+def test_package_without_a_name_is_the_descriptions_own(tmp_path):
+    """CAD exporters write ``package:///meshes/x.stl``: the description's own package, not a refusal."""
+    urdf, out = _tree(tmp_path, "package:///meshes/hand.stl")
+    _stl(urdf.parent.parent / "meshes" / "hand.stl")
+    res = import_description(urdf, out)
+    assert len(list((res.mjcf_path.parent / "assets").iterdir())) == 1
