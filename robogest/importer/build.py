@@ -120,12 +120,13 @@ def _build(desc: Description, name: str, out_yaml: Path, model_dir: Path, stagin
     joints = [m.joint(j).name for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
     if not joints:
         raise InputError(f"{desc.path}: no revolute or continuous joints; robogest drives hinge joints")
-    for j in range(m.njnt):  # an unlimited MJCF hinge gets one turn, as a URDF continuous joint does
-        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and not m.jnt_limited[j]:
-            el = next(x for x in mj.iter("joint") if x.get("name") == m.joint(j).name)
-            el.set("range", f"{-math.pi:.9f} {math.pi:.9f}")
-            el.set("limited", "true")
-            guesses.append(f"joint {m.joint(j).name!r} has no range: limited to one turn [-pi, pi]")
+    unlimited = [m.joint(j).name for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+                 and not m.jnt_limited[j]]  # fmt: skip
+    for el in (x for x in mj.find("worldbody").iter("joint") if x.get("name") in unlimited):
+        el.set("range", f"{-math.pi:.9f} {math.pi:.9f}")  # one turn, as a URDF continuous joint gets
+        el.set("limited", "true")
+    if unlimited:
+        guesses.append(f"{len(unlimited)} hinges have no range (e.g. {unlimited[0]!r}): limited to one turn [-pi, pi]")
     m = mdl.compile_xml(mj, desc.path)
     start = mdl.start_pose(m, joints, keyframe)
     start.update({j: float(q) for j, q in (overrides.get("hold") or {}).items() if j in start})

@@ -133,6 +133,8 @@ def stage_meshes(desc: Description, assets: Path) -> int:
     converted = []
     for el, key, base in _refs(desc):
         ref = el.get(key, "")
+        if desc.kind == "mjcf" and el.tag in ("mesh", "hfield", "skin") and not el.get("name"):
+            el.set("name", Path(ref).stem)  # MuJoCo names an asset after its file; the copy's name differs
         src = resolve(ref, desc, base, recased)
         name = staged.get(src)
         if name is None:

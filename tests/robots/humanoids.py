@@ -189,6 +189,14 @@ def write_mjcf(folder: Path, o: Options, degrees: bool = False, actuators: bool 
                       ctrlrange="-3.2 3.2")  # fmt: skip
     key = ET.SubElement(ET.SubElement(mj, "keyframe"), "key", name="stand")
     key.set("qpos", " ".join(["0 0 0.5 1 0 0 0"] + ["0"] * len(names)))
+    if o.hand_mesh:  # an asset named after its file, as menagerie models write them
+        (folder / "assets").mkdir()
+        write_mesh(folder / "assets" / "hand.stl", "stl")
+        mj.find("compiler").set("meshdir", "assets")
+        asset = mj.find("asset") if mj.find("asset") is not None else ET.SubElement(mj, "asset")
+        ET.SubElement(asset, "mesh", file="hand.stl")
+        hand = next(b for b in mj.iter("body") if b.get("name") == "left_hand")
+        ET.SubElement(hand, "geom", type="mesh", mesh="hand", contype="0", conaffinity="0")
     if degrees:  # MJCF's default angle unit: ranges in degrees, no compiler setting
         mj.find("compiler").attrib.pop("angle", None)
         for j in mj.find("worldbody").iter("joint"):

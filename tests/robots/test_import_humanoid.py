@@ -117,17 +117,19 @@ def test_an_elbow_bending_sideways_at_zero_rests_bent_forward(tmp_path):
     assert abs(rest["left_upper_arm_yaw"]) > 0.3 and abs(rest["right_upper_arm_yaw"]) > 0.3
 
 
-def test_mjcf_in_degrees(tmp_path):
+def test_mjcf_in_degrees_with_meshes_named_after_their_files(tmp_path):
     """An MJCF without ``angle="radian"`` gives its ranges in degrees; the ranges the import writes with its servos
     (and its sites and keyframe) are radians, so the model is written back in radians and its limits come out
-    right."""
+    right. Its ``<mesh file="hand.stl"/>`` is named "hand" by MuJoCo and still found under its copy's name."""
     from robogest.robot.validate import validate
 
     res = import_description(
-        write_mjcf(tmp_path, Options(arm_dof=3), degrees=True, actuators=False), tmp_path / "robots" / "d.yaml"
+        write_mjcf(tmp_path, Options(arm_dof=3, hand_mesh="stl"), degrees=True, actuators=False),
+        tmp_path / "robots" / "d.yaml",
     )
     elbow = next(j for j in load_robot_config(res.yaml_path).joints if j.name == "left_elbow")
     assert (elbow.lower_rad, elbow.upper_rad) == pytest.approx((-2.2, 0.1), abs=1e-5)
+    assert len(list((res.mjcf_path.parent / "assets").iterdir())) == 1
     assert [str(p) for p in validate(res.yaml_path)] == []
 
 
