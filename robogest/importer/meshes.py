@@ -11,6 +11,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from robogest.errors import InputError, MissingDependencyError
+from robogest.fileio import read_bytes_capped
 from robogest.importer.description import IMPORT_EXTRA, Description, confined, find_package
 
 #: Formats MuJoCo reads itself; others are converted to STL at import.
@@ -69,24 +70,19 @@ def resolve(ref: str, desc: Description, base: Path, recased: list[str]) -> Path
     )
 
 
-def copy_confined(src: Path, dst: Path) -> None:
-    """Copy a regular file of at most :data:`MAX_MESH_BYTES`; the copy gets the user's umask and at most the
-    source's read/write permissions (a root-only file never comes out world-readable)."""
-    try:
-        with open(src, "rb") as f:
-            st = os.fstat(f.fileno())
-            if not stat.S_ISREG(st.st_mode):
-                raise InputError(f"mesh {src}: not a regular file; give a mesh file")
-            if st.st_size > MAX_MESH_BYTES:
-                raise InputError(f"mesh {src}: {st.st_size / 1024**2:.0f} MiB, over {MAX_MESH_BYTES // 1024**2} MiB")
-            data = f.read(MAX_MESH_BYTES + 1)
-    except OSError as e:
-        raise InputError(f"mesh {src}: cannot read it ({e.strerror or e})") from None
+def _write_copy(dst: Path, data: bytes, src: Path) -> None:
+    """Write a new file with the user's umask and at most the source's read/write permissions (a root-only file
+    never comes out world-readable)."""
     mask = os.umask(0)
     os.umask(mask)
-    fd = os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666 & ~mask & stat.S_IMODE(st.st_mode))
+    fd = os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666 & ~mask & stat.S_IMODE(os.stat(src).st_mode))
     with os.fdopen(fd, "wb") as out:
         out.write(data)
+
+
+def copy_confined(src: Path, dst: Path) -> None:
+    """Copy a regular mesh file of at most :data:`MAX_MESH_BYTES` (:func:`_write_copy`)."""
+    _write_copy(dst, read_bytes_capped(src, MAX_MESH_BYTES, what="mesh"), src)
 
 
 def convert(src: Path, dst: Path) -> None:
@@ -95,20 +91,16 @@ def convert(src: Path, dst: Path) -> None:
         import trimesh
     except ImportError:
         raise MissingDependencyError(f"mesh {src.name}: converting {src.suffix} meshes needs {IMPORT_EXTRA}") from None
+    read_bytes_capped(src, MAX_MESH_BYTES, what="mesh")  # a regular file of a sane size, before trimesh opens it
     try:
-        scene = trimesh.load(str(src), force="mesh")
-        data = scene.export(file_type="stl")
+        data = trimesh.load(str(src), force="mesh").export(file_type="stl")
     except MemoryError:
         raise
     except Exception as e:  # trimesh and pycollada raise many kinds for a broken file
         raise InputError(
             f"mesh {src}: cannot convert it to STL ({type(e).__name__}: {e}); convert it yourself"
         ) from None
-    mask = os.umask(0)
-    os.umask(mask)
-    fd = os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666 & ~mask & stat.S_IMODE(src.stat().st_mode))
-    with os.fdopen(fd, "wb") as out:
-        out.write(data)
+    _write_copy(dst, data, src)
 
 
 def _refs(desc: Description) -> list[tuple[ET.Element, str, Path]]:

@@ -36,8 +36,6 @@ def compile_xml(mj: ET.Element, source: object):
 
 def urdf_to_mjcf(root: ET.Element, meshdir: str, source: object) -> ET.Element:
     """MuJoCo's URDF reader, keeping the visuals (a link with visuals but no collision collides with them)."""
-    import mujoco
-
     for link in root.iter("link"):
         if link.find("collision") is None and link.find("visual") is not None:
             for vis in link.findall("visual"):
@@ -46,18 +44,14 @@ def urdf_to_mjcf(root: ET.Element, meshdir: str, source: object) -> ET.Element:
     ext = root.find("mujoco") if root.find("mujoco") is not None else ET.SubElement(root, "mujoco")
     comp = ext.find("compiler") if ext.find("compiler") is not None else ET.SubElement(ext, "compiler")
     comp.attrib.update(discardvisual="false", strippath="false", fusestatic="false", meshdir=meshdir)
-    try:
-        spec = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"))
-        spec.compile()
-        return ET.fromstring(spec.to_xml())
-    except ValueError as e:
-        raise InputError(f"{source}: MuJoCo cannot load it: {' '.join(str(e).split())}") from None
+    return normalise_mjcf(root, source)
 
 
 def normalise_mjcf(mj: ET.Element, source: object) -> ET.Element:
-    """The MJCF as MuJoCo writes it back: angles in radians (an MJCF's default unit is degrees, and the ranges,
-    sites and keyframe added here are radians), orientations as quaternions, nothing left to a ``<compiler>``
-    setting that would read the additions differently."""
+    """The model (MJCF, or a URDF with its ``<mujoco>`` extension) as MuJoCo writes it back as MJCF: angles in
+    radians (an MJCF's default unit is degrees, and the ranges, sites and keyframe added here are radians),
+    orientations as quaternions, nothing left to a ``<compiler>`` setting that would read the additions
+    differently."""
     import mujoco
 
     try:
