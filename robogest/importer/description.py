@@ -53,13 +53,18 @@ class Description:
 def allowed_roots(path: Path, search_paths: list[Path]) -> list[Path]:
     """The description's tree, then the folders the user names. The tree is the nearest ROS package at or above the
     file (a folder with ``package.xml`` or ``manifest.xml``, where ``urdf/`` sits beside ``meshes/``), else the
-    folder above the file's (``robot/urdf/x.urdf`` with ``robot/meshes/``), never a home folder, ``/tmp`` or ``/``."""
+    folder above the file's (``robot/urdf/x.urdf`` with ``robot/meshes/``) unless that is a home folder, ``/tmp``,
+    ``/`` or above one of them (``/home``): then the file's own folder."""
     here = path.resolve().parent
-    shared = {Path.home().resolve(), Path("/tmp").resolve(), Path("/var/tmp"), Path(here.anchor)}
+    shared = [Path.home().resolve(), Path("/tmp").resolve(), Path("/var/tmp")]
+
+    def too_wide(folder: Path) -> bool:  # a shared folder or one above it (/home holds every user's home)
+        return folder == Path(folder.anchor) or any(folder == f or folder in f.parents for f in shared)
+
     tree = next(
-        (f for f in [here, *here.parents][:PACKAGE_LEVELS] if (f / "package.xml").is_file() or
-         (f / "manifest.xml").is_file()),
-        here.parent if here.parent not in shared and here.parent.parent != here.parent else here,
+        (f for f in [here, *here.parents][:PACKAGE_LEVELS] if not too_wide(f) and ((f / "package.xml").is_file() or
+         (f / "manifest.xml").is_file())),
+        here if too_wide(here.parent) else here.parent,
     )  # fmt: skip
     return [tree] + [Path(p).resolve() for p in search_paths]
 

@@ -122,3 +122,20 @@ def test_package_without_a_name_is_the_descriptions_own(tmp_path):
     _stl(urdf.parent.parent / "meshes" / "hand.stl")
     res = import_description(urdf, out)
     assert len(list((res.mjcf_path.parent / "assets").iterdir())) == 1
+
+
+def test_a_description_in_a_home_folder_reads_nothing_above_it(tmp_path, monkeypatch):
+    """~/robot.urdf may read ~/meshes, never a neighbour's home (the folder above the file's is /home)."""
+    home, other = tmp_path / "home" / "me", tmp_path / "home" / "you"
+    (home / "meshes").mkdir(parents=True)
+    other.mkdir()
+    monkeypatch.setenv("HOME", str(home))
+    _stl(home / "meshes" / "hand.stl")
+    _stl(other / "secret.stl")
+    urdf = home / "robot.urdf"
+    urdf.write_text(arm_urdf('<mesh filename="meshes/hand.stl"/>'))
+    assert import_description(urdf, tmp_path / "out" / "ok.yaml").yaml_path.is_file()
+    urdf.write_text(arm_urdf('<mesh filename="../you/secret.stl"/>'))
+    with pytest.raises(InputError, match=r"secret\.stl lies outside"):
+        import_description(urdf, tmp_path / "out2" / "no.yaml")
+    assert not (tmp_path / "out2").exists()
