@@ -309,14 +309,14 @@ def _check_stat(st: os.stat_result, p: Path, max_bytes: int, what: str) -> None:
         )
 
 
-def read_text_capped(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, what: str = "file") -> str:
-    """The UTF-8 text of a regular file of at most ``max_bytes``, checked before reading (``/dev/zero``, a FIFO or
+def read_bytes_capped(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, what: str = "file") -> bytes:
+    """The bytes of a regular file of at most ``max_bytes``, checked before reading (``/dev/zero``, a FIFO or
     a 3 GB sparse file are refused at once instead of read until memory runs out).
 
     Raises
     ------
     InputError
-        Missing, not a regular file, larger than ``max_bytes``, unreadable or not UTF-8; the message names the file.
+        Missing, not a regular file, larger than ``max_bytes`` or unreadable; the message names the file.
     """
     p = Path(path)
     check_input_file(p, max_bytes, what)  # before opening: opening a FIFO waits for a writer
@@ -330,11 +330,23 @@ def read_text_capped(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, w
         raise InputError(f"{what} {p}: cannot read ({e.strerror or e})") from None
     if len(data) > max_bytes:  # grew while being read
         raise InputError(f"{what} {p}: larger than the {max_bytes / 1024**2:.0f} MiB robogest reads as one {what}")
+    return data
+
+
+def read_text_capped(path: str | os.PathLike, max_bytes: int = MAX_TEXT_BYTES, what: str = "file") -> str:
+    """The UTF-8 text of a regular file of at most ``max_bytes`` (:func:`read_bytes_capped`).
+
+    Raises
+    ------
+    InputError
+        Missing, not a regular file, larger than ``max_bytes``, unreadable or not UTF-8; the message names the file.
+    """
+    data = read_bytes_capped(path, max_bytes, what)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as e:
         raise InputError(
-            f"{what} {p}: not UTF-8 text (byte {e.start}); save it as UTF-8, or is it a binary file?"
+            f"{what} {path}: not UTF-8 text (byte {e.start}); save it as UTF-8, or is it a binary file?"
         ) from None
 
 

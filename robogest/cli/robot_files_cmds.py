@@ -1,4 +1,4 @@
-"""``robogest robots validate|import-urdf|import-lerobot-calibration``: bring your own robot and check it."""
+"""``robogest robots validate|import|import-lerobot-calibration``: bring your own robot and check it."""
 
 from __future__ import annotations
 
@@ -16,15 +16,62 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(func=cmd_validate)
 
     p = sub.add_parser(
-        "import-urdf",
-        help="make a robot from a URDF: MJCF with sites, servos, home keyframe and scene, plus a YAML to edit",
+        "import",
+        aliases=["import-urdf"],
+        help="make a robot from a URDF, xacro or MJCF description: MJCF with sites, servos, home keyframe and "
+        "scene, plus a YAML with held joints to edit",
     )
-    p.add_argument("urdf", type=Path, help="the robot's URDF (meshes: STL/OBJ next to or above it)")
-    p.add_argument("--out", type=Path, required=True, help="robot YAML to write, e.g. robots/my_arm.yaml (the MJCF "
-                   "goes to sim/NAME/ beside a robots/ folder, else to NAME/ beside the YAML)")  # fmt: skip
+    p.add_argument(
+        "description",
+        type=Path,
+        metavar="FILE",
+        help="the robot's URDF, xacro (.xacro) or MJCF (.xml); meshes STL/OBJ/DAE in its folders (xacro and DAE "
+        "need: pip install 'robogest[import]')",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        help="robot YAML to write, e.g. robots/my_robot.yaml (the "
+        "MJCF goes to sim/NAME/ beside a robots/ folder, else to NAME/ beside the YAML)",
+    )
     p.add_argument("--name", help="robot name (default: the YAML file's name)")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
-    p.set_defaults(func=cmd_import_urdf)
+    p.add_argument(
+        "--arm",
+        action="append",
+        default=[],
+        metavar="SIDE=J1,J2,...",
+        help="the joints of the left or right arm, shoulder first (repeat for both arms)",
+    )
+    p.add_argument("--head", metavar="J1,J2,...", help="the head's joints, neck first")
+    p.add_argument(
+        "--hold",
+        action="append",
+        default=[],
+        metavar="J=RAD",
+        help="hold joint J at RAD radians (e.g. a knee of a robot that stands bent)",
+    )
+    p.add_argument(
+        "--forward",
+        choices=["+x", "-x", "+y", "-y"],
+        help="the description's forward axis (default: found from the limbs' names or the feet)",
+    )
+    p.add_argument(
+        "--map",
+        type=Path,
+        metavar="YAML",
+        help="overrides as one file: {arms: {left: [..], right: [..]}, head: [..], hold: {J: RAD}, forward: +y}",
+    )
+    p.add_argument(
+        "--search-path",
+        action="append",
+        default=[],
+        type=Path,
+        metavar="DIR",
+        help="a folder outside the description's own that it may read (meshes, xacro includes)",
+    )
+    p.set_defaults(func=cmd_import)  # fmt: skip
 
     p = sub.add_parser(
         "import-lerobot-calibration",
@@ -58,14 +105,63 @@ def cmd_validate(args: argparse.Namespace) -> int:
     return report_validation(args.robot)
 
 
-def cmd_import_urdf(args: argparse.Namespace) -> int:
-    from robogest.cli.checks import check_outputs
-    from robogest.robot.urdf_import import import_urdf
+def _overrides(args: argparse.Namespace) -> dict:
+    """--map, then --arm/--head/--hold/--forward on top of it; one InputError line for a malformed value."""
+    from robogest.errors import InputError
 
-    check_outputs({"--out": args.out}, {"URDF": args.urdf})
-    res = import_urdf(args.urdf, args.out, name=args.name, overwrite=args.force)
+    out: dict = {}
+    if args.map is not None:
+        from robogest.fileio import load_yaml, read_text_capped
+        from robogest.robot.config import ImportRecord
+
+        try:
+            raw = load_yaml(read_text_capped(args.map, what="--map"))
+            out = ImportRecord.model_validate({"source": str(args.map), **(raw or {})}).model_dump(exclude={"source"})
+        except Exception as e:
+            if isinstance(e, InputError):
+                raise
+            raise InputError(f"--map {args.map}: {' '.join(str(e).split())[:300]}; write arms/head/hold/forward "
+                             "as in the import: section of an imported robot") from None  # fmt: skip
+        out = {k: v for k, v in out.items() if v}
+    for a in args.arm:
+        side, _, joints = a.partition("=")
+        if side not in ("left", "right") or not joints:
+            raise InputError(f"--arm {a}: write --arm left=J1,J2,... or --arm right=J1,J2,...")
+        out.setdefault("arms", {})[side] = [j for j in joints.split(",") if j]
+    if args.head:
+        out["head"] = [j for j in args.head.split(",") if j]
+    for h in args.hold:
+        joint, _, rad = h.partition("=")
+        try:
+            out.setdefault("hold", {})[joint] = float(rad)
+        except ValueError:
+            raise InputError(f"--hold {h}: write --hold JOINT=RADIANS, e.g. --hold left_knee=0.3") from None
+    if args.forward:
+        out["forward"] = args.forward
+    return out
+
+
+def print_parts(res) -> None:
+    """The table the user checks: each part, its joints in chain order, and why."""
+    from robogest.cli.common import TextTable, print_table
+
+    t = TextTable("body parts found (check them; override with --arm/--head/--hold/--forward)",
+                  ["part", "joints (chain order)", "why"])  # fmt: skip
+    for part, joints, why in res.parts.rows:
+        t.rows.append([part, ", ".join(joints), why])
+    print_table(t)
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    from robogest.cli.checks import check_outputs
+    from robogest.importer import import_description
+
+    check_outputs({"--out": args.out}, {"description": args.description})
+    res = import_description(args.description, args.out, name=args.name, overwrite=args.force,
+                             overrides=_overrides(args), search_paths=args.search_path)  # fmt: skip
     print(f"wrote {res.yaml_path}, {res.mjcf_path}, {res.scene_path}")
-    print("guessed (edit the YAML and the MJCF to change it):")
+    print_parts(res)
+    print("guessed (edit the YAML and the MJCF, or import again with overrides, to change it):")
     for g in res.guesses:
         print(f"  - {g}")
     return report_validation(res.yaml_path)

@@ -205,6 +205,17 @@ class BusConfig(_Strict):
         return self
 
 
+class ImportRecord(_Strict):
+    """How ``robogest robots import`` read the robot, kept so that importing again keeps the user's overrides.
+    Only the importer reads it."""
+
+    source: str
+    arms: dict[Literal["left", "right"], list[str]] = Field(default_factory=dict)
+    head: list[str] = Field(default_factory=list)
+    hold: dict[str, float] = Field(default_factory=dict)
+    forward: Literal["+x", "-x", "+y", "-y"] | None = None
+
+
 class RobotConfig(_Strict):
     """A whole robot. ``model`` is the MJCF path, relative to the YAML file."""
 
@@ -218,6 +229,8 @@ class RobotConfig(_Strict):
     #: a person's arm hangs down). Zero for humanoids.
     retarget_frame_rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
     bus: BusConfig | None = None
+    #: Written by ``robogest robots import`` (YAML key ``import``): the description and the overrides it used.
+    import_record: ImportRecord | None = Field(default=None, validation_alias="import", serialization_alias="import")
     path: Path | None = Field(default=None, exclude=True)
 
     @model_validator(mode="after")

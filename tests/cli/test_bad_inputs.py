@@ -327,7 +327,7 @@ CASES = [
     Case("virtual-bus-record-is-folder", ["virtual-bus", "--robot", ROBOT, "--record", "d"], folder("d"), 2,
          r"--record d: is a folder"),
     Case("import-urdf-out-is-urdf", ["robots", "import-urdf", "a.urdf", "--out", "a.urdf", "--force"],
-         text("a.urdf", "<robot name='a'/>"), 2, r"--out a\.urdf is the same file as the input URDF a\.urdf"),
+         text("a.urdf", "<robot name='a'/>"), 2, r"--out a\.urdf is the same file as the input description a\.urdf"),
     Case("lerobot-calibration-out-is-robot-yaml", ["robots", "import-lerobot-calibration", "c.json", "--robot",
          f"robots/{ROBOT}.yaml", "--out", f"robots/{ROBOT}.yaml", "--force"],
          all_of(text("c.json", "{}"), robot_copy), 2,
