@@ -13,8 +13,10 @@ has ended, side by side with the growth over the start.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import queue
 import subprocess
 import sys
 import threading
@@ -52,18 +54,34 @@ def _speech_pcm(length_s: float) -> bytes:
 
 
 def main(argv: list[str]) -> int:
-    from websockets.sync.client import connect
-
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--streams", type=int, default=4)
     ap.add_argument("--length-s", type=float, default=300.0, help="seconds of speech per stream")
     ap.add_argument("--time-scale", type=float, default=4.0, help="the session plays this many times real time")
+    ap.add_argument("--kill-above-mb", type=float, default=4000.0, help="kill the server if it grows past this")
+    ap.add_argument("--server-log", help="write the server's stderr here (default: discarded)")
+    ap.add_argument("--trace", action="store_true", help="print the server's memory every 10 s")
     args = ap.parse_args(argv)
+
+    with contextlib.ExitStack() as stack:
+        return _run(args, stack)
+
+
+def _run(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
+    from websockets.sync.client import connect
 
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     cmd = [sys.executable, "-m", "robogest", "serve", "--listen", "127.0.0.1:0", "--no-idle", "--time-scale",
            str(args.time_scale), "--log-level", "warning"]  # fmt: skip
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env, cwd=ROOT)
+    log_file = stack.enter_context(open(args.server_log or os.devnull, "w"))
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=log_file,
+        text=True,
+        env=env,
+        cwd=ROOT,
+    )
     try:
         line = proc.stdout.readline()
         if "ready on" not in line:
@@ -79,20 +97,37 @@ def main(argv: list[str]) -> int:
         rows = []
         with connect(url, open_timeout=60, max_size=None, ping_interval=None) as ws:
             json.loads(ws.recv())
+            inbox: queue.Queue = queue.Queue()
+
+            def read() -> None:  # a client that stops reading stalls the server's sends, then its keepalive
+                with contextlib.suppress(Exception):
+                    for raw in ws:
+                        inbox.put(json.loads(raw))
+
+            threading.Thread(target=read, daemon=True).start()
             for k in range(args.streams):
                 peak = [0.0]
                 stop = threading.Event()
 
                 def sample(peak: list = peak, stop: threading.Event = stop) -> None:
+                    n = 0
                     while not stop.wait(0.25):
-                        peak[0] = max(peak[0], rss_mb(proc.pid))
+                        now = rss_mb(proc.pid)
+                        peak[0] = max(peak[0], now)
+                        n += 1
+                        if args.trace and n % 40 == 0:
+                            print(f"  {n / 4:5.0f} s: {now:6.0f} MB", flush=True)
+                        if peak[0] > args.kill_above_mb:  # a shared machine: never let it reach the OOM killer
+                            print(f"  server over {args.kill_above_mb} MB: killed", flush=True)
+                            proc.kill()
+                            return
 
                 th = threading.Thread(target=sample, daemon=True)
                 th.start()
                 ws.send(json.dumps({"type": "stream_start", "sample_rate": SR, "format": "int16"}))
                 utt = None
                 while utt is None:
-                    m = json.loads(ws.recv())
+                    m = inbox.get(timeout=120)
                     if m["type"] == "accepted":
                         utt = m["utterance"]
                     elif m["type"] == "error":
@@ -106,7 +141,7 @@ def main(argv: list[str]) -> int:
                         time.sleep(delay)
                 ws.send(json.dumps({"type": "stream_end"}))
                 while True:
-                    m = json.loads(ws.recv(timeout=args.length_s + 120))
+                    m = inbox.get(timeout=args.length_s + 120)
                     if m["type"] == "error":
                         print(f"  stream {k + 1}: error {m['message']}")
                     if m.get("utterance") == utt and m.get("event") in ("done", "interrupted"):

@@ -228,15 +228,13 @@ class Server:
                 log.info("listening on ws://%s:%d", self.host, self.port)
                 outcome = await stop
                 if isinstance(outcome, BaseException) or self.lost is not None:
-                    reason = str(outcome) if isinstance(outcome, BaseException) else self.lost
+                    # a new exception, not the one the future holds: no reference cycle keeps the robot alive until
+                    # the interpreter's end (nanobind then reports its objects as leaked)
+                    failure = str(outcome) if isinstance(outcome, BaseException) else f"robot session lost ({self.lost})"
                     for c in list(self.connections):
                         with contextlib.suppress(Exception):
                             await c.ws.close(1011, "robot session lost")
-                    raise (
-                        outcome
-                        if isinstance(outcome, BaseException)
-                        else BackendError(f"robot session lost ({reason}); the robot went to rest, torque off")
-                    )
+                    raise BackendError(failure)
         finally:
             for t in tasks:
                 t.cancel()
@@ -302,7 +300,7 @@ class Server:
                 continue
             msg = str(err) or type(err).__name__
             self.lost = msg
-            log.error("robot session lost: %s (the robot went to rest, torque off)", msg)
+            log.error("robot session lost: %s", msg)
             await self._broadcast({"type": "session_lost", "message": msg})
             self._drop_queued(f"say: refused, the robot session was lost ({msg})")
             failure = "no reopening"
@@ -321,7 +319,7 @@ class Server:
                     await self._broadcast({"type": "session_restored", **self.status()})
                     continue
             if self._stop is not None and not self._stop.done():
-                self._stop.set_result(BackendError(f"robot session lost ({msg}); {failure}; torque is off"))
+                self._stop.set_result(BackendError(f"robot session lost ({msg}); {failure}"))
             return
 
     # --- says, round-robin ----------------------------------------------------------------------------

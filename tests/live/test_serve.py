@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from websockets.exceptions import InvalidStatus
+from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
 from robogest.cli.main import main
@@ -284,3 +284,94 @@ def test_a_numeric_port_is_refused_with_a_hint_to_listen(capsys):
     assert main(["serve", "--port", "8766"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--listen 127.0.0.1:8766" in err[0]
+
+
+def _vanish_first_servo(bus) -> int:
+    sid = bus.servos[0].id
+    bus.servo(sid).vanished = True
+    return sid
+
+
+def test_a_dead_session_is_told_to_every_client_at_once_and_refuses_new_work():
+    """Python API: a servo vanishes; before any say, every client hears ``session_lost``, ``status`` says why, says
+    and streams are refused naming it; when reopening fails, ``run`` ends with a BackendError (exit 5)."""
+    import asyncio
+    import threading
+
+    from robogest.errors import BackendError
+    from robogest.live import Robot
+    from robogest.live.server import Server
+    from robogest.robot.registry import find_robot
+    from robogest.virtualbus import VirtualBus
+
+    release, reopened = threading.Event(), []
+
+    def reopen():
+        reopened.append(True)
+        release.wait(30)
+        raise BackendError("servo id 1 does not answer")
+
+    opts = {"lost_after_s": 0.3, "health_hz": 0}
+    with VirtualBus(find_robot("humanoid_xl430")) as bus, Robot(
+        "humanoid_xl430", backend="dynamixel", port=bus.port, idle=False, warm_up=False, backend_options=opts
+    ) as robot:  # fmt: skip
+        server = Server(robot, "127.0.0.1", 0, reopen=reopen)
+        ready, outcome = threading.Event(), []
+
+        def run() -> None:
+            try:
+                asyncio.run(server.run(lambda h, p: ready.set()))
+            except BaseException as e:
+                outcome.append(e)
+
+        th = threading.Thread(target=run, daemon=True)
+        th.start()
+        assert ready.wait(30)
+        url = f"ws://127.0.0.1:{server.port}"
+        with connect(url, open_timeout=30) as a, connect(url, open_timeout=30) as b:
+            assert _recv(a, "hello")["error"] is None and _recv(b, "hello")["open"]
+            sid = _vanish_first_servo(bus)
+            for ws in (a, b):  # no message sent: the server tells them itself
+                assert f"servo id {sid}" in _recv(ws, "session_lost", timeout_s=20)["message"]
+            a.send(json.dumps({"type": "status"}))
+            st = _recv(a, "status")
+            assert not st["open"] and f"servo id {sid}" in st["error"]
+            a.send(json.dumps({"type": "say", "text": "Hello?"}))
+            assert "say: refused, the robot session was lost" in _recv(a, "error")["message"]
+            b.send(json.dumps({"type": "stream_start", "sample_rate": 16000}))
+            assert "stream_start: refused, the robot session was lost" in _recv(b, "error")["message"]
+            deadline = time.monotonic() + 30
+            while not reopened and time.monotonic() < deadline:  # tried once, in a worker thread
+                time.sleep(0.05)
+            assert reopened == [True]
+            release.set()
+            th.join(30)
+        assert len(outcome) == 1 and isinstance(outcome[0], BackendError)
+        assert outcome[0].exit_code == 5 and "robot session lost" in str(outcome[0])
+
+
+def test_serve_exits_5_when_a_servo_vanishes_and_the_session_cannot_reopen():
+    """CLI: the death is logged at once, clients hear of it, and the process exits 5 (it went on serving and
+    exited 130 on Ctrl-C)."""
+    from robogest.robot.registry import find_robot
+    from robogest.virtualbus import VirtualBus
+
+    with VirtualBus(find_robot("humanoid_xl430")) as bus:
+        proc, url = _start("--backend", "dynamixel", "--port", bus.port)
+        try:
+            with _client(url) as ws:
+                _recv(ws, "hello")
+                sid = _vanish_first_servo(bus)
+                assert f"servo id {sid}" in _recv(ws, "session_lost", timeout_s=20)["message"]
+                with pytest.raises(ConnectionClosed):
+                    while True:
+                        _next(ws, time.monotonic() + 60)
+            assert proc.wait(60) == 5
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        err = proc.stderr.read()
+    assert re.search(rf"ERROR: robot session lost: .*servo id {sid}", err)
+    assert "reopening the robot session once" in err and "Traceback" not in err
+    errors = [line for line in err.splitlines() if line.startswith("robogest: error:")]
+    assert len(errors) == 1 and errors[0].startswith("robogest: error: robot session lost")
