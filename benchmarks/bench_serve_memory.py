@@ -22,6 +22,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -63,17 +64,16 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--trace", action="store_true", help="print the server's memory every 10 s")
     args = ap.parse_args(argv)
 
-    with contextlib.ExitStack() as stack:
-        return _run(args, stack)
+    with open(args.server_log or os.devnull, "w") as log_file:
+        return _run(args, log_file)
 
 
-def _run(args: argparse.Namespace, stack: contextlib.ExitStack) -> int:
+def _run(args: argparse.Namespace, log_file: Any) -> int:
     from websockets.sync.client import connect
 
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     cmd = [sys.executable, "-m", "robogest", "serve", "--listen", "127.0.0.1:0", "--no-idle", "--time-scale",
            str(args.time_scale), "--log-level", "warning"]  # fmt: skip
-    log_file = stack.enter_context(open(args.server_log or os.devnull, "w"))
     proc = subprocess.Popen(
         cmd,
         stdout=subprocess.PIPE,

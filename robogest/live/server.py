@@ -228,9 +228,8 @@ class Server:
                 log.info("listening on ws://%s:%d", self.host, self.port)
                 outcome = await stop
                 if isinstance(outcome, BaseException) or self.lost is not None:
-                    # a new exception, not the one the future holds: no reference cycle keeps the robot alive until
-                    # the interpreter's end (nanobind then reports its objects as leaked)
-                    failure = str(outcome) if isinstance(outcome, BaseException) else f"robot session lost ({self.lost})"
+                    lost = f"robot session lost ({self.lost})"
+                    failure = str(outcome) if isinstance(outcome, BaseException) else lost
                     for c in list(self.connections):
                         with contextlib.suppress(Exception):
                             await c.ws.close(1011, "robot session lost")

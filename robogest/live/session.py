@@ -489,6 +489,7 @@ class Robot:
         out.open()  # outside the control tick that starts it
 
         def on_start() -> None:  # in the loop's tick: keep short
+            play.on_start = None  # called once: the handle kept after the utterance must not keep its audio
             played = out.start()
             h._add("audio_start", played=played)
 
@@ -760,6 +761,7 @@ class StreamUtterance:
                 raise
 
             def on_start() -> None:  # in the loop's tick: keep short
+                play.on_start = None  # called once: the handle kept after the utterance must not keep this stream
                 played = out.start()
                 t = time.monotonic()
                 h._add("audio_start", t, played=played)
