@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import ctypes
 import hmac
 import itertools
 import json
@@ -551,8 +552,21 @@ class _Connection:
                     await self.send({"type": "event", "utterance": h.id, "event": e["type"], **_plain(e)})
             if done:
                 log.info("%s: utterance %d %s", self.peer, h.id, "interrupted" if h.interrupted else "done")
+                await asyncio.to_thread(release_freed_memory)
                 return
             await asyncio.sleep(_EVENT_POLL_S)
+
+
+def release_freed_memory() -> None:
+    """Give the free pages of the C heap back to the system (glibc's ``malloc_trim``; elsewhere nothing).
+
+    An utterance's arrays, freed when it ends, otherwise stay in the process's arenas: 150 s of streamed speech
+    left 41 MB resident, 2 MB after this (about 4 ms; ctypes releases the GIL meanwhile)."""
+    try:
+        trim = ctypes.CDLL(None).malloc_trim
+    except Exception:  # not glibc
+        return
+    trim(0)
 
 
 def _parse(msg: str) -> dict:
