@@ -281,7 +281,7 @@ def test_a_busy_address_is_one_line_before_the_robot_is_touched(capsys):
 
 
 def test_a_numeric_port_is_refused_with_a_hint_to_listen(capsys):
-    assert main(["serve", "--port", "8766"]) == 2
+    assert main(["serve", "--backend", "dynamixel", "--port", "8766"]) == 2  # (it opened serial port "8766")
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--listen 127.0.0.1:8766" in err[0]
 
