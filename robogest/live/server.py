@@ -39,10 +39,12 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import ctypes
+import errno
 import hmac
 import itertools
 import json
 import logging
+import os
 import signal
 import socket
 import sys
@@ -115,13 +117,17 @@ def check_token(host: str, port: int, token: str | None) -> None:
 def bind(host: str, port: int) -> socket.socket:
     """The listening socket, bound before the robot is opened: a busy address is one line and no torque."""
     try:
-        family, _, _, _, addr = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)[0]
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+        family, _, _, _, addr = min(infos, key=lambda i: i[0] != socket.AF_INET)  # localhost: 127.0.0.1 first
         return socket.create_server(addr[:2], family=family)
     except OSError as e:
-        raise InputError(
-            f"--listen {host}:{port}: cannot listen there ({e.strerror or e}); another robogest serve may be using "
-            "it: stop that one or choose another port"
-        ) from None
+        fix = (
+            "another robogest serve may be using it: stop that one or choose another port"
+            if e.errno == errno.EADDRINUSE
+            else "give an address of this machine, e.g. 127.0.0.1:8765"
+        )
+        why = os.strerror(e.errno) if (e.errno or 0) > 0 else (e.strerror or str(e))  # gaierror: negative codes
+        raise InputError(f"--listen {host}:{port}: cannot listen there ({why}); {fix}") from None
 
 
 _say_seq = itertools.count()
