@@ -375,3 +375,19 @@ def test_serve_exits_5_when_a_servo_vanishes_and_the_session_cannot_reopen():
     assert "reopening the robot session once" in err and "Traceback" not in err
     errors = [line for line in err.splitlines() if line.startswith("robogest: error:")]
     assert len(errors) == 1 and errors[0].startswith("robogest: error: robot session lost")
+
+
+def test_log_level_quiets_the_servers_log():
+    """serve logs at info by default (the SIGTERM test above reads it); --log-level warning keeps only problems."""
+    proc, url = _start("--log-level", "warning")
+    try:
+        with _client(url) as ws:
+            _recv(ws, "hello")
+            ws.send('{"type": "dance"}')
+            _recv(ws, "error")
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(60)
+    err = proc.stderr.read()
+    assert "WARNING" in err and "unknown message type 'dance'" in err
+    assert "INFO" not in err and "connected" not in err
