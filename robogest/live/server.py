@@ -384,6 +384,7 @@ class _Connection:
         self.stream_format = "int16"
         self._fed_n = 0  #: samples fed to the open stream
         self._played_t0: float | None = None  #: time.monotonic() its audio started playing
+        self._dropped = 0  #: its chunks refused for the buffer limit
         self.tasks: set[asyncio.Task] = set()
 
     @property
@@ -485,7 +486,7 @@ class _Connection:
             await asyncio.to_thread(self.stream.close)
         self.stream = await asyncio.to_thread(self.robot.stream, sr)
         self.stream_format = fmt
-        self._fed_n, self._played_t0 = 0, None
+        self._fed_n, self._played_t0, self._dropped = 0, None, 0
         h = self.stream.handle
         log.info("%s: stream accepted as utterance %d (%d Hz %s)", self.peer, h.id, sr, fmt)
         await self.send({"type": "accepted", "utterance": h.id, "id": obj.get("id")})
@@ -511,10 +512,14 @@ class _Connection:
         limit = self.server.limits.stream_buffer_s
         ahead = self._buffered_s(len(data) // width)
         if ahead > limit:
-            raise InputError(
+            msg = (
                 f"stream: this chunk would put {ahead:.1f} s of audio ahead of playback, over the {limit:g} s limit "
                 "(--stream-buffer-s); it was dropped: feed the stream no faster than it plays"
             )
+            self._dropped += 1  # every chunk is answered; the log says it once a stream (a flood is many a second)
+            log.log(logging.WARNING if self._dropped == 1 else logging.DEBUG, "%s: %s", self.peer, msg)
+            await self.send({"type": "error", "message": msg})
+            return
         chunk = pcm_to_float(data, self.stream_format)
         await asyncio.to_thread(self.stream.feed, chunk)
         self._fed_n += chunk.shape[0]
