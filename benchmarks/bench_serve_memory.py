@@ -153,9 +153,10 @@ def _run(args: argparse.Namespace, log_file: Any) -> int:
                 rows.append((peak[0], after))
                 print(f"{f'stream {k + 1} peak':>12} {peak[0]:8.0f} {peak[0] - start:+9.0f}")
                 print(f"{f'stream {k + 1} after':>12} {after:8.0f} {after - start:+9.0f}", flush=True)
-        time.sleep(3.0)
-        end = rss_mb(proc.pid)
-        print(f"{'end':>12} {end:8.0f} {end - start:+9.0f}   (goal: within +50 MB of start)")
+        for wait_s in (3.0, 30.0):  # after the client left
+            time.sleep(wait_s)
+            end = rss_mb(proc.pid)
+            print(f"{f'end +{wait_s:g} s':>12} {end:8.0f} {end - start:+9.0f}   (goal: within +50 MB of start)")
     finally:
         proc.terminate()
         proc.wait(60)

@@ -280,6 +280,7 @@ class Server:
             self._served.pop(conn, None)
             conn.finish()
             log.info("client %s disconnected", peer)
+            await asyncio.to_thread(release_freed_memory)
 
     def status(self) -> dict:
         st = self.robot.status()
