@@ -50,6 +50,8 @@ class AudioOut:
         self._finished = True
 
     def write(self, chunk: np.ndarray) -> None:
+        if self.sd is None:  # nothing will play it: keeping it would hold a whole stream's audio (a server's hours)
+            return
         with self._lock:
             self._buf.append(np.asarray(chunk, np.float32))
 

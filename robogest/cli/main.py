@@ -16,12 +16,14 @@ import contextlib
 import errno
 import importlib
 import io
+import logging
 import os
 import signal
 import sys
 import threading
 import warnings
 from collections.abc import Callable, Iterator, Sequence
+from typing import Any
 
 from robogest.cli.checks import OneLineParser
 from robogest.errors import RobogestError
@@ -79,6 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action=_VersionAction, help="print the installed version and exit")
+    add_log_level(parser)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in _MODULES:
         try:
@@ -89,6 +92,43 @@ def build_parser() -> argparse.ArgumentParser:
             raise
         mod.register(sub)
     return parser
+
+
+LOG_LEVELS = ("debug", "info", "warning", "error")
+
+
+def add_log_level(parser: argparse.ArgumentParser, default: str | None = None) -> None:
+    """``--log-level``: what the ``robogest.*`` loggers print on stderr (given after a subcommand too)."""
+    parser.add_argument(
+        "--log-level", choices=LOG_LEVELS, default=argparse.SUPPRESS,
+        help="log messages shown on stderr (default: warning; info for serve)",
+    )  # fmt: skip
+
+
+class _StderrHandler(logging.StreamHandler):
+    """Writes to whatever ``sys.stderr`` is when a record comes (tests replace it)."""
+
+    def __init__(self) -> None:
+        super().__init__(sys.stderr)
+
+    @property  # type: ignore[override]
+    def stream(self) -> Any:
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value: Any) -> None:
+        pass
+
+
+def _configure_logging(level: str) -> None:
+    """The CLI's readable default: ``robogest.*`` records on stderr with time and level (the library configures
+    nothing on import; other libraries' loggers are left alone)."""
+    logger = logging.getLogger("robogest")
+    logger.setLevel(level.upper())
+    if not any(isinstance(h, _StderrHandler) for h in logger.handlers):
+        h = _StderrHandler()
+        h.setFormatter(logging.Formatter("%(asctime)s robogest %(levelname)s: %(message)s", "%H:%M:%S"))
+        logger.addHandler(h)
 
 
 def _quiet_stdout() -> None:
@@ -187,6 +227,7 @@ def _run(argv: Sequence[str] | None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    _configure_logging(getattr(args, "log_level", None) or getattr(args, "default_log_level", "warning"))
     try:
         with _terminate_like_ctrl_c():
             rc = int(args.func(args) or 0)

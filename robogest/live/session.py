@@ -501,6 +501,7 @@ class Robot:
         out.open()  # outside the control tick that starts it
 
         def on_start() -> None:  # in the loop's tick: keep short
+            play.on_start = None  # called once: the handle kept after the utterance must not keep its audio
             played = out.start()
             h._add("audio_start", played=played)
 
@@ -563,14 +564,23 @@ class Robot:
         resume()
         return {"interrupt_s": t0, "at_rest_s": rest.events["done"].monotonic_s if "done" in rest.events else None}
 
+    @property
+    def error(self) -> BaseException | None:
+        """Why the session died (the control loop failed: a servo lost, the port gone; it went to rest and turned
+        torque off), or None while it lives. What a server polls to tell its clients at once."""
+        loop = self.loop
+        return None if loop is None else loop._error
+
     def status(self) -> dict:
         """Session state as plain data (what ``robogest serve`` answers to ``status``)."""
         cur = self._current
         loop = self.loop
+        err = self.error
         return {
             "robot": self.config.name,
             "backend": self.backend_name,
             "open": bool(self._opened and loop is not None and not loop._closed),
+            "error": None if err is None else str(err),
             "speaking": bool(cur is not None and not cur.done),
             "utterance": cur.id if cur is not None else None,
             "idle": self.idle_enabled,
@@ -763,6 +773,7 @@ class StreamUtterance:
                 raise
 
             def on_start() -> None:  # in the loop's tick: keep short
+                play.on_start = None  # called once: the handle kept after the utterance must not keep this stream
                 played = out.start()
                 t = time.monotonic()
                 h._add("audio_start", t, played=played)

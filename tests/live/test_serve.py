@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -13,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from websockets.exceptions import InvalidStatus
+from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
 from robogest.cli.main import main
@@ -25,6 +26,8 @@ TOKEN = "s3cret"
 def _start(*extra: str) -> tuple[subprocess.Popen, str]:
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     cmd = [sys.executable, "-m", "robogest", "serve", "--listen", "127.0.0.1:0", "--no-idle", *extra]
+    if "--token" not in extra:
+        cmd = [*cmd, "--token", TOKEN]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
     line = proc.stdout.readline()  # blocks until ready (or the process died)
     if "ready on" not in line:
@@ -35,7 +38,10 @@ def _start(*extra: str) -> tuple[subprocess.Popen, str]:
 
 @pytest.fixture(scope="module")
 def server():
-    proc, url = _start("--token", TOKEN, "--allow-origin", "http://localhost:3000", "--time-scale", "2")
+    proc, url = _start(
+        "--token", TOKEN, "--allow-origin", "http://localhost:3000", "--time-scale", "2", "--max-clients", "3",
+        "--stream-buffer-s", "3",
+    )  # fmt: skip
     yield proc, url
     if proc.poll() is None:
         proc.send_signal(signal.SIGTERM)
@@ -90,6 +96,15 @@ def test_malformed_messages_get_errors_and_the_session_keeps_running(server):
             assert match in _recv(ws, "error")["message"]
         ws.send(b"\x00\x01\x02")  # PCM with no stream open
         assert "stream_start" in _recv(ws, "error")["message"]
+        for bad, match in [  # what Python's decoder cannot take is an error naming it, not an "internal error"
+            ("[" * 100_000 + "]" * 100_000, "nested too deeply"),
+            ('{"type": "say", "text": "hi", "id": ' + "9" * 5000 + "}", "number too long"),
+            ('{"type": "say", "text": "hi", "id": ' + "9" * 4000 + "}", '"id" must be'),
+            (json.dumps({"type": "say", "text": "word " * 1001}), "5005 characters is over the limit of 5000"),
+        ]:
+            ws.send(bad)
+            msg = _recv(ws, "error")["message"]
+            assert match in msg and "internal error" not in msg
         ws.send('{"type": "say"}')  # neither text nor audio: the pipeline's own one-line error
         assert "either text to speak" in _recv(ws, "error")["message"]
         ws.send('{"type": "status"}')
@@ -128,6 +143,64 @@ def test_say_stream_and_interrupt_push_events(server):
         res = _recv(ws, "interrupted")
         assert res["at_rest_s"] >= res["interrupt_s"]
         assert "done" not in _until_event(ws, acc["utterance"], "interrupted")
+
+
+def test_a_long_say_holds_another_clients_short_one_no_longer_than_it_plays(server):
+    """Says are queued per client and served in turn: client A's second long say comes after B's short one, which
+    waits only for the one playing (utterance ids are given in the order says start)."""
+    _, url = server
+    long = "This is a long answer with several parts, and it goes on for a while before it ends. " * 2
+    with _client(url) as a, _client(url) as b:
+        _recv(a, "hello")
+        _recv(b, "hello")
+        a.send(json.dumps({"type": "say", "text": long, "id": "a1"}))
+        a.send(json.dumps({"type": "say", "text": long, "id": "a2"}))
+        first = _recv(a, "accepted")
+        assert first["id"] == "a1"
+        b.send(json.dumps({"type": "say", "text": "Quick hello.", "id": "b1"}))
+        b.send(json.dumps({"type": "status"}))
+        assert _recv(b, "status")["says_queued"] == 2
+        quick = _recv(b, "accepted")
+        assert "done" in _until_event(a, first["utterance"], "done")  # it was played to its end, not replaced
+        second = _recv(a, "accepted")
+        assert second["id"] == "a2" and first["utterance"] < quick["utterance"] < second["utterance"], (
+            first,
+            quick,
+            second,
+        )
+        assert "done" in _until_event(b, quick["utterance"], "done")
+        _until_event(a, second["utterance"], "done")
+
+
+def test_a_stream_fed_far_ahead_of_playback_is_refused_and_the_session_keeps_running(server):
+    _, url = server
+    sr = 16000
+    pcm = np.round(0.2 * np.sin(2 * np.pi * 150 * np.arange(8 * sr) / sr) * 32767).astype("<i2").tobytes()
+    with _client(url) as ws:
+        _recv(ws, "hello")
+        ws.send(json.dumps({"type": "stream_start", "sample_rate": sr}))
+        acc = _recv(ws, "accepted")
+        for i in range(0, len(pcm), 3200):  # 8 s of audio at once: over the server's 3 s buffer
+            ws.send(pcm[i : i + 3200])
+        assert "over the 3 s limit (--stream-buffer-s)" in _recv(ws, "error", timeout_s=30)["message"]
+        ws.send(json.dumps({"type": "stream_end"}))
+        _until_event(ws, acc["utterance"], "done")
+        ws.send(json.dumps({"type": "status"}))
+        assert _recv(ws, "status")["open"]
+
+
+def test_clients_over_the_limit_get_an_error_and_the_session_keeps_running(server):
+    _, url = server
+    with contextlib.ExitStack() as stack:
+        replies = []
+        for _ in range(4):  # the server takes 3
+            ws = stack.enter_context(_client(url))
+            replies.append(_next(ws, time.monotonic() + 30))
+        busy = [m for m in replies if m["type"] == "error"]
+        assert busy and all("server busy" in m["message"] and "--max-clients" in m["message"] for m in busy)
+        assert sum(m["type"] == "hello" for m in replies) <= 3
+    with _client(url) as ws:
+        assert _recv(ws, "hello")["open"]
 
 
 def test_handshakes_without_token_or_from_a_web_page_are_refused(server):
@@ -178,10 +251,143 @@ def test_sigterm_ends_the_server_at_rest_with_torque_off(server):
     assert proc.wait(60) == 143
     err = proc.stderr.read()
     assert "SIGTERM" in err and "Traceback" not in err and "connection handler failed" not in err
+    # the log (serve's default level is info): connections with address and origin, requests, refusals, interrupts
+    assert "connected (origin http://localhost:3000)" in err and "connected (origin None)" in err
+    assert "say accepted as utterance" in err and "stream accepted as utterance" in err
+    assert "missing or wrong token" in err and "the most --max-clients allows" in err
+    assert re.search(r"interrupt; at rest \d+\.\d\d s after it", err)
+
+
+NO_SERVO = ["--backend", "dynamixel", "--port", "/dev/robogest-no-such-port"]  # a robot that would fail to open
 
 
 def test_non_loopback_listen_needs_a_token(capsys):
-    assert main(["serve", "--listen", "0.0.0.0:8765"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--token" in err[0]
+    for where in ("0.0.0.0:8765", "127.0.0.2:8765", "[::ffff:127.0.0.1]:8765"):
+        assert main(["serve", "--listen", where, *NO_SERVO]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--token" in err[-1] and where.split("]")[0].strip("[") in err[-1]
     assert main(["serve", "--listen", "nonsense"]) == 2
+
+
+def test_a_busy_address_is_one_line_before_the_robot_is_touched(capsys):
+    """The socket is bound before the robot opens: a second serve on the same address never turns torque on."""
+    import socket
+
+    with socket.create_server(("127.0.0.1", 0)) as busy:
+        port = busy.getsockname()[1]
+        assert main(["serve", "--listen", f"127.0.0.1:{port}", *NO_SERVO]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"127.0.0.1:{port}: cannot listen there" in err[0] and "no-such-port" not in err[0]
+
+
+def test_a_numeric_port_is_refused_with_a_hint_to_listen(capsys):
+    assert main(["serve", "--backend", "dynamixel", "--port", "8766"]) == 2  # (it opened serial port "8766")
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--listen 127.0.0.1:8766" in err[0]
+
+
+def _vanish_first_servo(bus) -> int:
+    sid = bus.servos[0].id
+    bus.servo(sid).vanished = True
+    return sid
+
+
+def test_a_dead_session_is_told_to_every_client_at_once_and_refuses_new_work():
+    """Python API: a servo vanishes; before any say, every client hears ``session_lost``, ``status`` says why, says
+    and streams are refused naming it; when reopening fails, ``run`` ends with a BackendError (exit 5)."""
+    import asyncio
+    import threading
+
+    from robogest.errors import BackendError
+    from robogest.live import Robot
+    from robogest.live.server import Server
+    from robogest.robot.registry import find_robot
+    from robogest.virtualbus import VirtualBus
+
+    release, reopened = threading.Event(), []
+
+    def reopen():
+        reopened.append(True)
+        release.wait(30)
+        raise BackendError("servo id 1 does not answer")
+
+    opts = {"lost_after_s": 0.3, "health_hz": 0}
+    with VirtualBus(find_robot("humanoid_xl430")) as bus, Robot(
+        "humanoid_xl430", backend="dynamixel", port=bus.port, idle=False, warm_up=False, backend_options=opts
+    ) as robot:  # fmt: skip
+        server = Server(robot, "127.0.0.1", 0, reopen=reopen)
+        ready, outcome = threading.Event(), []
+
+        def run() -> None:
+            try:
+                asyncio.run(server.run(lambda h, p: ready.set()))
+            except BaseException as e:
+                outcome.append(e)
+
+        th = threading.Thread(target=run, daemon=True)
+        th.start()
+        assert ready.wait(30)
+        url = f"ws://127.0.0.1:{server.port}"
+        with connect(url, open_timeout=30) as a, connect(url, open_timeout=30) as b:
+            assert _recv(a, "hello")["error"] is None and _recv(b, "hello")["open"]
+            sid = _vanish_first_servo(bus)
+            for ws in (a, b):  # no message sent: the server tells them itself
+                assert f"servo id {sid}" in _recv(ws, "session_lost", timeout_s=20)["message"]
+            a.send(json.dumps({"type": "status"}))
+            st = _recv(a, "status")
+            assert not st["open"] and f"servo id {sid}" in st["error"]
+            a.send(json.dumps({"type": "say", "text": "Hello?"}))
+            assert "say: refused, the robot session was lost" in _recv(a, "error")["message"]
+            b.send(json.dumps({"type": "stream_start", "sample_rate": 16000}))
+            assert "stream_start: refused, the robot session was lost" in _recv(b, "error")["message"]
+            deadline = time.monotonic() + 30
+            while not reopened and time.monotonic() < deadline:  # tried once, in a worker thread
+                time.sleep(0.05)
+            assert reopened == [True]
+            release.set()
+            th.join(30)
+        assert len(outcome) == 1 and isinstance(outcome[0], BackendError)
+        assert outcome[0].exit_code == 5 and "robot session lost" in str(outcome[0])
+
+
+def test_serve_exits_5_when_a_servo_vanishes_and_the_session_cannot_reopen():
+    """CLI: the death is logged at once, clients hear of it, and the process exits 5 (it went on serving and
+    exited 130 on Ctrl-C)."""
+    from robogest.robot.registry import find_robot
+    from robogest.virtualbus import VirtualBus
+
+    with VirtualBus(find_robot("humanoid_xl430")) as bus:
+        proc, url = _start("--backend", "dynamixel", "--port", bus.port)
+        try:
+            with _client(url) as ws:
+                _recv(ws, "hello")
+                sid = _vanish_first_servo(bus)
+                assert f"servo id {sid}" in _recv(ws, "session_lost", timeout_s=20)["message"]
+                with pytest.raises(ConnectionClosed):
+                    while True:
+                        _next(ws, time.monotonic() + 60)
+            assert proc.wait(60) == 5
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        err = proc.stderr.read()
+    assert re.search(rf"ERROR: robot session lost: .*servo id {sid}", err)
+    assert "reopening the robot session once" in err and "Traceback" not in err
+    errors = [line for line in err.splitlines() if line.startswith("robogest: error:")]
+    assert len(errors) == 1 and errors[0].startswith("robogest: error: robot session lost")
+
+
+def test_log_level_quiets_the_servers_log():
+    """serve logs at info by default (the SIGTERM test above reads it); --log-level warning keeps only problems."""
+    proc, url = _start("--log-level", "warning")
+    try:
+        with _client(url) as ws:
+            _recv(ws, "hello")
+            ws.send('{"type": "dance"}')
+            _recv(ws, "error")
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(60)
+    err = proc.stderr.read()
+    assert "WARNING" in err and "unknown message type 'dance'" in err
+    assert "INFO" not in err and "connected" not in err
