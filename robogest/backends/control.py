@@ -81,8 +81,9 @@ class _SignalState:
 
 
 _SIG = _SignalState()
-#: Signals that end motion at rest; SIGQUIT (Ctrl-\) too: its default ends the process at once, torque left on.
-_HANDLED = ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
+#: Signals that end motion at rest with torque off (exit 128 + signal), in the CLI, a live session and ``serve``;
+#: SIGQUIT (Ctrl-\) too: its default ends the process at once, torque left on.
+HANDLED_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
 
 
 def _on_signal(signum: int, frame: Any) -> None:
@@ -124,7 +125,7 @@ def signals_end_at_rest() -> Iterator[None]:
     old: dict[int, Any] = {}
     if _SIG.active == 0:
         _SIG.fired, _SIG.pending, _SIG.later = None, None, []
-        for name in _HANDLED:
+        for name in HANDLED_SIGNALS:
             sig = getattr(signal, name, None)
             if sig is None:
                 continue

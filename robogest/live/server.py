@@ -194,7 +194,7 @@ class Server:
 
     # --- session --------------------------------------------------------------------------------------
     async def run(self, ready: Any = None) -> None:
-        """Serve until cancelled, SIGINT/SIGTERM/SIGHUP, or the session's death; ``ready(host, port)`` once
+        """Serve until cancelled, SIGINT/SIGTERM/SIGHUP/SIGQUIT, or the session's death; ``ready(host, port)`` once
         listening.
 
         The event loop takes those signals itself (a Python signal handler would raise inside whichever task
@@ -204,13 +204,13 @@ class Server:
         """
         from websockets.asyncio.server import serve
 
-        from robogest.backends.control import deliver_signal
+        from robogest.backends.control import HANDLED_SIGNALS, deliver_signal
 
         loop = asyncio.get_running_loop()
         stop: asyncio.Future = loop.create_future()
         self._stop = stop
         taken: dict[int, Any] = {}
-        for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        for name in HANDLED_SIGNALS:
             sig = getattr(signal, name, None)
             prev = signal.getsignal(sig) if sig is not None else None
             if sig is None or (name == "SIGHUP" and prev == signal.SIG_IGN):

@@ -391,3 +391,22 @@ def test_log_level_quiets_the_servers_log():
     err = proc.stderr.read()
     assert "WARNING" in err and "unknown message type 'dance'" in err
     assert "INFO" not in err and "connected" not in err
+
+
+def test_sigquit_mid_say_ends_the_server_at_rest_like_sigterm():
+    """Ctrl-\\ (SIGQUIT) reached serve through Python's handler, not the event loop's, so mid-say it could be raised
+    inside an asyncio task; it is taken like SIGTERM: at rest, torque off, exit 131, no traceback."""
+    proc, url = _start()
+    try:
+        with _client(url) as ws:
+            _recv(ws, "hello")
+            ws.send(json.dumps({"type": "say", "text": "This is a sentence long enough to be cut short."}))
+            n = _recv(ws, "accepted")["utterance"]
+            _until_event(ws, n, "first_goal")
+            proc.send_signal(signal.SIGQUIT)
+            assert proc.wait(60) == 131
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    err = proc.stderr.read()
+    assert "SIGQUIT" in err and "Traceback" not in err and "connection handler failed" not in err
