@@ -157,7 +157,13 @@ def test_at_a_low_control_rate_the_servo_keeps_near_the_velocity_limit_between_g
         time.sleep(0.05)
         rec = bus.record()
     q = (rec["present_ticks"] - 2048) / backend._tpr[0]  # (N, J) servo radians
-    v = np.abs(np.diff(q, axis=0)) / np.diff(rec["t_s"])[:, None]
+    # Speed over steps of at least 50 ms: one tick of rounding over a sample interval shortened by a busy machine
+    # read as 1.62x once; the servo's top speed (6.4x) is what this guards against.
+    keep = [0]
+    for i, t in enumerate(rec["t_s"]):
+        if t - rec["t_s"][keep[-1]] >= 0.05:
+            keep.append(i)
+    v = np.abs(np.diff(q[keep], axis=0)) / np.diff(rec["t_s"][keep])[:, None]
     assert v.max() < 1.6 * robot.v_max_rad_s.max()
 
 
