@@ -308,7 +308,9 @@ def header(source: str, guesses: list[str]) -> str:
 
 
 def scene(m, d, name: str, robot_file: str) -> str:
-    """Floor under the robot's lowest point, a light, a skybox and the front camera framing the robot."""
+    """Floor under the robot's lowest point, a light and a skybox. No camera: videos and renders of a scene without
+    one are filmed by :func:`robogest.backends.render.framing_camera`, facing the robot and framing its upper body
+    at any frame size (a fixed camera written here framed the whole robot, pedestal and legs, from one side)."""
     if m.ngeom:
         glo, ghi = geom_boxes(m, d)
         lo, hi = glo.min(axis=0), ghi.max(axis=0)
@@ -317,17 +319,12 @@ def scene(m, d, name: str, robot_file: str) -> str:
     floor = min(0.0, float(lo[2]))
     centre = 0.5 * (lo + hi)
     size = float(max(np.linalg.norm(hi - lo), 0.2))
-    pos = centre + size * np.array([1.1, -0.8, 0.55])
-    f = (centre - pos) / np.linalg.norm(centre - pos)
-    x = np.cross(f, [0.0, 0.0, 1.0])
-    x /= np.linalg.norm(x)
-    y = np.cross(x, f)
 
     def v(a) -> str:
         return " ".join(f"{t:.4g}" for t in a)
 
     light = centre + size * np.array([0.6, 0.4, 2.0])
-    return f"""<!-- Scene for {name}: floor, light, skybox, "front" camera (written by robogest robots import). -->
+    return f"""<!-- Scene for {name}: floor, light, skybox (written by robogest robots import). -->
 <mujoco model="{name} scene">
   <include file="{robot_file}"/>
   <statistic center="{v(centre)}" extent="{size:.3g}"/>
@@ -345,7 +342,6 @@ def scene(m, d, name: str, robot_file: str) -> str:
   <worldbody>
     <light pos="{v(light)}" dir="-0.3 -0.2 -1" directional="true" diffuse="0.6 0.6 0.6"/>
     <geom name="floor" type="plane" size="0 0 0.05" pos="0 0 {floor:.4g}" material="floor"/>
-    <camera name="front" pos="{v(pos)}" xyaxes="{v(x)} {v(y)}" fovy="45"/>
   </worldbody>
 </mujoco>
 """

@@ -238,3 +238,34 @@ def test_forward_from_the_feet_when_no_name_says_left_or_right(tmp_path):
     assert parts["left arm"][0] == "a_shoulder_pitch" and parts["right arm"][0] == "b_shoulder_pitch"
     m, d = _home(load_robot_config(res.yaml_path))
     assert d.site_xpos[m.site("l_shoulder_site").id][1] > 0.1
+
+
+def test_an_imported_humanoid_is_filmed_facing_it_with_its_upper_body_in_frame(messy):
+    """The import writes no camera of its own (one framed the whole robot, legs and pedestal, from the side): its
+    videos and renders go through the framing camera, which faces the robot and frames its upper body."""
+    from robogest.backends.mujoco_sim import load_sim_model
+    from robogest.backends.render import framing_camera, make_renderer, render_frame, video_camera
+    from robogest.errors import MissingDependencyError
+
+    robot = load_robot_config(messy.yaml_path)
+    sim = load_sim_model(robot)
+    m, d = sim.model, mujoco.MjData(sim.model)
+    assert m.ncam == 0
+    d.qpos[sim.qpos_idx] = robot.rest_q_rad
+    mujoco.mj_forward(m, d)
+    cam = video_camera(m, d, robot, 160, 120)
+    assert isinstance(cam, mujoco.MjvCamera) and cam.azimuth == framing_camera(m, d, robot, 160, 120).azimuth
+    try:
+        renderer = make_renderer(m, 160, 120)
+    except MissingDependencyError as e:
+        pytest.skip(f"no offscreen GL here: {e}")
+    try:
+        renderer.enable_segmentation_rendering()
+        seg = render_frame(renderer, d, cam)
+    finally:
+        renderer.close()
+    geom = np.where(seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM), seg[..., 0], -1)
+    body = np.where(geom >= 0, m.geom_bodyid[np.maximum(geom, 0)], -1)
+    sites = {s for v in robot.retarget for s in v.robot}
+    for name in sites:  # every retargeting site's body (head, shoulders, elbows, hands) is seen
+        assert (body == m.site_bodyid[m.site(name).id]).any(), f"{name}'s body is not in the frame"
