@@ -103,7 +103,8 @@ def test_import_writes_a_valid_robot(imported):
     # position servos sized from <limit effort>: force clipped at the effort, kp = effort / 0.1 rad
     a = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, "joint4")
     assert m.actuator_forcerange[a, 1] == pytest.approx(1.5) and m.actuator_gainprm[a, 0] == pytest.approx(15)
-    assert m.ncam >= 1 and m.nlight >= 1 and any(m.geom(g).name == "floor" for g in range(m.ngeom))
+    # a lit floor, and no camera of its own: videos go through the framing camera (tests/sim/test_framing.py)
+    assert m.ncam == 0 and m.nlight >= 1 and any(m.geom(g).name == "floor" for g in range(m.ngeom))
     text = imported.yaml_path.read_text()
     assert "welded" in text and "continuous joint 'joint5'" in text and "mapped to the human RIGHT arm" in text
 
