@@ -569,6 +569,22 @@ class _Connection:
             await asyncio.sleep(_EVENT_POLL_S)
 
 
+#: glibc's ``M_MMAP_THRESHOLD`` option of ``mallopt`` (malloc.h) and the value serve sets: blocks this large get
+#: their own mapping, returned to the system when freed.
+_M_MMAP_THRESHOLD = -3
+MMAP_THRESHOLD_BYTES = 256 * 1024
+
+
+def map_large_blocks() -> None:
+    """Have glibc give every block of :data:`MMAP_THRESHOLD_BYTES` or more its own mapping (elsewhere nothing).
+
+    Its default threshold rises after each large block freed, up to 32 MB, so a stream's growing audio and feature
+    arrays (19 MB of audio for 300 s, copied as it grows) end up in the heap, where they stay fragmented after the
+    stream ends; mapped, they go back to the system as soon as they are freed."""
+    with contextlib.suppress(Exception):  # not glibc
+        ctypes.CDLL(None).mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)
+
+
 def release_freed_memory() -> None:
     """Give the free pages of the C heap back to the system (glibc's ``malloc_trim``; elsewhere nothing).
 
@@ -618,6 +634,7 @@ def serve_forever(server: Server, robot_name: str, backend: str) -> None:
     def ready(h: str, p: int) -> None:
         print(f"robogest serve: ready on ws://{h}:{p} (robot {robot_name}, backend {backend})", flush=True)
 
+    map_large_blocks()
     try:
         asyncio.run(server.run(ready))
     finally:
