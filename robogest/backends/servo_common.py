@@ -750,11 +750,18 @@ class ServoBackend(Backend):
         units = np.clip(np.floor(a / np.where(has, unit, 1.0) * (1 + 1e-12)), 1, np.maximum(top, 1))
         return np.where(has, units, 0).astype(np.int64)
 
+    def profile_caps(self) -> list[tuple[Enum, np.ndarray]]:
+        """The servos' own limits as ``(register, units (J,))``: the speed cap (profile velocity / moving speed /
+        goal speed, :meth:`speed_cap_units`) and the acceleration limit (profile acceleration / goal acceleration /
+        ACC, :meth:`accel_cap_units`; 0 where the model has no such register). What a connect writes, and what
+        ``servo write --robot`` sends with a goal."""
+        return [(self.REG["speed_cap"], self.speed_cap_units()), (self.REG["acceleration"], self.accel_cap_units())]
+
     def _write_profiles(self) -> None:
-        """The servos' own speed cap (profile velocity / moving speed / goal speed) and acceleration limit (profile
-        acceleration / goal acceleration / ACC), each read back: RAM registers, so written at every connect, and a
-        servo that does not keep what was written (a register its firmware lacks) is refused."""
-        caps = [(self.REG["speed_cap"], self.speed_cap_units()), (self.REG["acceleration"], self.accel_cap_units())]
+        """The servos' own speed and acceleration limits (:meth:`profile_caps`), each read back: RAM registers, so
+        written at every connect, and a servo that does not keep what was written (a register its firmware lacks)
+        is refused."""
+        caps = self.profile_caps()
         for k, sid in enumerate(int(i) for i in self.ids):
             for reg, units in caps:
                 if not units[k]:

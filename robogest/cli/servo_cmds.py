@@ -378,12 +378,10 @@ def _check_robot_write(robot: Any, link: Any, args: argparse.Namespace, name: st
     require_hardware_safe(robot, "nothing written")  # the limits a goal is checked against must be the robot's
     backend, k = _joint_of_servo(robot, args)
     if name == "GOAL_POSITION":  # at the joint's speed and acceleration, as a session moves it, not the servo's top
-        caps = [(backend.REG["speed_cap"], backend.speed_cap_units()[k]),
-                (backend.REG["acceleration"], backend.accel_cap_units()[k])]  # fmt: skip
-        for reg, units in caps:
-            if units:  # 0: no acceleration register on this model (AX-12A, SCS0009)
+        for reg, units in backend.profile_caps():
+            if units[k]:  # 0: no acceleration register on this model (AX-12A, SCS0009)
                 cap = link.reg(reg.name)
-                link.write(args.id, cap, _encode_value(link.protocol, cap.name, cap.value[1], int(units)))
+                link.write(args.id, cap, _encode_value(link.protocol, cap.name, cap.value[1], int(units[k])))
         return
     goal, present = (_read_value(link, args.id, r) for r in ("GOAL_POSITION", "PRESENT_POSITION"))
     goal_args = argparse.Namespace(id=args.id, value=goal, port=args.port)
