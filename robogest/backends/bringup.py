@@ -364,8 +364,11 @@ def scan_robot(
     found = scan(port, [proto], bauds, max_id=max_id, per_id=per_id, progress=progress)
     heard = {f.id for f in found}
     for baud in bauds:
+        missing = sorted({s.id for s in robot.bus.servos.values()} - heard)
+        if not missing:
+            break
         with ServoLink(port, proto, baud) as link:
-            for sid in sorted({s.id for s in robot.bus.servos.values()} - heard):
+            for sid in missing:
                 with contextlib.suppress(BackendError):
                     found.append(describe(link, sid))
                     heard.add(sid)
