@@ -113,21 +113,17 @@ def _check_audio_beside_save(save: Path) -> None:
     """The ``.wav`` that ``--save X.npz`` writes for synthesized speech may replace only the audio of an earlier
     ``--save X.npz`` (the trajectory ``X.npz`` there names it): an unrelated ``X.wav`` was replaced silently."""
     import os
-    import zipfile
 
     from robogest.errors import InputError
+    from robogest.fileio import read_npz
 
     wav = save.with_suffix(".wav")
     if not os.path.lexists(wav) or not os.path.isfile(wav):  # a folder, FIFO...: check_outputs says why
         return
-    named = ""
-    try:
-        import numpy as np
-
-        with np.load(save, allow_pickle=False) as z:  # one small member, not the whole file
-            named = str(z["audio_path"]) if "audio_path" in z.files else ""
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
-        pass
+    try:  # one small member, not the whole file
+        named = str(read_npz(save, keys=["audio_path"]).get("audio_path", ""))
+    except InputError:  # no earlier trajectory there, or not a readable one
+        named = ""
     if not named or Path(named).name != wav.name:
         raise InputError(
             f"--save {save}: would replace {wav}, which is not the audio of an earlier --save {save}; the "
