@@ -39,7 +39,7 @@ import numpy as np
 from robogest.generators.base import Generator
 from robogest.motion.human_motion import HumanMotion
 from robogest.robot.config import RobotConfig
-from robogest.safety.limits import JointLimits
+from robogest.safety.limits import JointLimits, SafetyConfig
 from robogest.speech.stream import SpeechStream
 from robogest.trajectory import Trajectory
 
@@ -232,8 +232,8 @@ class StreamingPlanner:
         self.feed = TrajectoryFeed(robot, fps)
         self.rest = np.asarray(robot.rest_q_rad, float)
         self.limits = JointLimits.from_robot(robot)
-        self.lo = robot.q_min_rad + 0.02
-        self.hi = robot.q_max_rad - 0.02
+        self.lo = robot.q_min_rad + SafetyConfig.margin_rad  # the batch safety layer's band
+        self.hi = robot.q_max_rad - SafetyConfig.margin_rad
         self._human = np.empty((0, 0, 4))  # (K, B, 4) human rotations behind the feed's frames: retarget changes only
         self.start_s = 0.0  #: where the current generation window starts, seconds
         self.n_plans = 0
@@ -310,7 +310,10 @@ class StreamingPlanner:
         """``q (K, J)`` for frames ``first..`` made velocity- and acceleration-feasible from the frame before it, as
         the batch safety layer's tracker does for a whole utterance. Without it the control loop's limiter
         saturates on raw IK frames (measured on a 16 s paragraph: goals up to 62° from the plan, wrist-speed
-        correlation 0.51; with it 23° and 0.90, like the batch path's 5° and 0.99)."""
+        correlation 0.51; with it 23° and 0.90, like the batch path's 5° and 0.99).
+
+        A continuation the tracker refuses is never replaced by the unchecked frames: the :class:`SafetyError`
+        stops the utterance and the robot glides to rest, as any planner failure does."""
         from robogest.errors import SafetyError
         from robogest.safety.stages import fit_within_limits, track
 
@@ -325,8 +328,11 @@ class StreamingPlanner:
             x = fit_within_limits(x, self.limits, 1.0 / feed.fps, prev, step0=step, rest_mask=rest)
         try:
             out = track(x, self.limits, 1.0 / feed.fps, prev, step0=step, rest_mask=rest)
-        except SafetyError:  # a continuation the tracker cannot take (e.g. after an underrun): the loop's limiter will
-            return q
+        except SafetyError as e:
+            raise SafetyError(
+                f"safety: streamed plan {self.n_plans + 1} (frames from {first / feed.fps:.2f} s) cannot continue "
+                f"the motion within the robot's limits, so the utterance stops and the robot glides to rest: {e}"
+            ) from e
         return out[1:]
 
     def _remember(self, rot: np.ndarray, off: int, first: int, n_end: int) -> None:

@@ -240,3 +240,23 @@ def test_blas_thread_limit_is_the_sessions_own_and_restored_on_close():
     assert blas() == before
     with Robot(ROBOT, backend="sim", idle=False, blas_threads=None, **FAST):
         assert blas() == before
+
+
+def test_a_plan_the_tracker_refuses_stops_the_utterance_instead_of_playing_unchecked_frames(cfg, tts, monkeypatch):
+    """Where the tracker cannot continue the motion within the limits, the stream must not fall back to the raw IK
+    frames: the refusal is raised (the session then stops the utterance and glides to rest)."""
+    import robogest.safety.stages as stages
+    from robogest.errors import SafetyError
+
+    real_track, calls = stages.track, []
+
+    def refusing_track(*args, **kwargs):
+        calls.append(1)
+        if len(calls) > 1:  # the first continuation is tracked; the next is refused
+            raise SafetyError("safety: simulated refusal")
+        return real_track(*args, **kwargs)
+
+    monkeypatch.setattr(stages, "track", refusing_track)
+    with pytest.raises(SafetyError, match=r"streamed plan \d+ .* glides to rest: safety: simulated refusal"):
+        _stream_with_player(cfg, tts)
+    assert len(calls) == 2
