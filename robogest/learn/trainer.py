@@ -290,6 +290,13 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
             mcfg = spec.fit_config(mcfg, train_takes)
         if hasattr(spec, "plan_epochs"):
             mcfg = spec.plan_epochs(mcfg, cfg.epochs)
+    first_best = spec.first_best_epoch(mcfg) if hasattr(spec, "first_best_epoch") else 0
+    if cfg.epochs <= first_best:
+        raise InputError(
+            f"{spec.name}: --epochs {cfg.epochs} ends before any epoch may become best.pt (the first is epoch "
+            f"{first_best + 1}, after {spec.stage_name(0, mcfg) if hasattr(spec, 'stage_name') else 'warm-up'}); "
+            f"train at least {first_best + 1} epochs"
+        )
     seq = spec.sequence_length(mcfg)
     v_len = spec.validation_length(mcfg) if hasattr(spec, "validation_length") else seq
     xs, ys, vx, vy = _windows(spec, mcfg, train_takes, val_takes, norm, seq, cfg.window_stride, v_len, out, info)
@@ -332,13 +339,14 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
 
     best_path = out / "best.pt"
 
-    def checkpoint(next_epoch: int) -> dict[str, Any]:
+    def checkpoint(next_epoch: int, stage: str) -> dict[str, Any]:
         opt_states = {name: o.state_dict() for name, o in optimizers.items()}
         train_state = {
             # one optimiser keeps the original "optimizer" key, so older readers still resume
             **({"optimizer": opt_states["optimizer"]} if list(opt_states) == ["optimizer"] else {}),
             "optimizers": opt_states,
             "next_epoch": next_epoch,
+            "stage": stage,  # the phase the weights come from (e.g. Gesticulator's pre-training vs autoregressive)
             "history": history,
             "best_val": best,
             "rng_cpu": torch.get_rng_state(),
@@ -348,7 +356,6 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
         return make_checkpoint(cfg.model, dataclasses.asdict(mcfg), fcfg.to_dict(), norm.to_dict(), state, train_state)
 
-    first_best = spec.first_best_epoch(mcfg) if hasattr(spec, "first_best_epoch") else 0
     bar = _progress(info.is_main)
     for epoch in range(start, cfg.epochs):
         stage = spec.stage_name(epoch, mcfg) if hasattr(spec, "stage_name") else ""
@@ -397,9 +404,9 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         improved = epoch >= first_best and score < best
         best = score if improved else best
         if info.is_main:
-            ckpt = checkpoint(epoch + 1)
+            ckpt = checkpoint(epoch + 1, stage)
             save_checkpoint(ckpt, out / "last.pt")
-            if improved or not best_path.is_file():
+            if epoch >= first_best and (improved or not best_path.is_file()):  # never a warm-up stage's model
                 save_checkpoint(ckpt, best_path)
             with atomic_path(out / "history.json") as tmp:
                 tmp.write_text(json.dumps(to_jsonable(history), indent=1, allow_nan=False), encoding="utf-8")

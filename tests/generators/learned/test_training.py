@@ -238,8 +238,50 @@ def test_train_cli(fixture_data, tmp_path, capsys):
     train_cmds.register(parser.add_subparsers())
     args = parser.parse_args(
         ["train", "--data", str(fixture_data), "--out", str(tmp_path / "o"), "--epochs", "1", "--device", "cpu",
-         "--text-encoder", "hash-test", "--cache-dir", str(tmp_path / "c"), "--window-stride", "20"]
+         "--text-encoder", "hash-test", "--cache-dir", str(tmp_path / "c"), "--window-stride", "20",
+         "--set", "pretrain_epochs=0"]
     )  # fmt: skip
     assert args.func(args) == 0
     assert (tmp_path / "o" / "best.pt").is_file() and (tmp_path / "o" / "last.pt").is_file()
     assert "best checkpoint" in capsys.readouterr().out
+
+
+def test_best_checkpoint_is_an_autoregressive_epoch_that_uses_its_previous_poses(fixture_data, tmp_path, monkeypatch):
+    """A pre-training epoch (FiLM weights still zero: the paper's No-Autoregression ablation) never becomes best.pt,
+    even when its validation score is the lowest; the checkpoint records its phase, and the model it holds answers
+    to the previous poses it is given."""
+    from robogest.errors import InputError
+    from robogest.generators.learned import train_model
+    from robogest.generators.learned.gesticulator import GesticulatorConfig, GesticulatorNet
+    from robogest.generators.learned.gesticulator.training import GesticulatorSpec
+    from robogest.learn.checkpoint import load_checkpoint
+    from robogest.learn.trainer import TrainConfig
+
+    # the validation score rises every epoch: the first (pre-training) epoch would win on score alone
+    monkeypatch.setattr(GesticulatorSpec, "validation_loss", lambda self, m, s, p, epoch, c: torch.tensor(epoch + 1.0))
+    cfg = TrainConfig(
+        data=str(fixture_data), out=str(tmp_path / "o"), epochs=3, lr=1e-3, batch_size=64, window_stride=10,
+        val_fraction=0.34, device="cpu", cache_dir=str(tmp_path / "cache"),
+        model_overrides={**SMALL_MODEL, "pretrain_epochs": 2}, **HASH16,
+    )  # fmt: skip
+    best = train_model(cfg, log=lambda s: None)
+    ckpt = load_checkpoint(best)
+    assert ckpt["train_state"]["next_epoch"] == 3
+    assert ckpt["train_state"]["stage"] == "autoregressive, own poses only"
+    assert load_checkpoint(tmp_path / "o" / "last.pt")["train_state"]["stage"].startswith("autoregressive")
+
+    model = GesticulatorNet(GesticulatorConfig.from_dict(ckpt["model_config"]))
+    model.load_state_dict(ckpt["model_state"])
+    model.eval()
+    c = model.config
+    gen = torch.Generator().manual_seed(0)
+    speech = torch.randn(1, c.sequence_length, c.n_input, generator=gen)
+    poses = torch.randn(1, c.sequence_length, c.n_pose, generator=gen)
+    with torch.no_grad():
+        a = model(speech, poses, period=0)  # seeded with these previous poses
+        b = model(speech, poses * 0.0, period=0)  # ... or with the mean pose
+    assert float((a - b).abs().max()) > 1e-4  # the saved model uses its previous poses
+
+    with pytest.raises(InputError, match=r"--epochs 2 ends before any epoch may become best\.pt .* at least 3"):
+        train_model(dataclasses.replace(cfg, out=str(tmp_path / "p"), epochs=2), log=lambda s: None)
+    assert not (tmp_path / "p" / "best.pt").exists()

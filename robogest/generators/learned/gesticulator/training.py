@@ -32,6 +32,21 @@ class GesticulatorSpec:
     def sequence_length(self, config: GesticulatorConfig) -> int:
         return config.sequence_length
 
+    def first_best_epoch(self, config: GesticulatorConfig) -> int:
+        """Pre-training epochs (no autoregression, FiLM weights still zero) are the paper's No-Autoregression
+        ablation, never the model ``best.pt`` hands to generation."""
+        return config.pretrain_epochs
+
+    def stage_name(self, epoch: int, config: GesticulatorConfig) -> str:
+        period = teacher_forcing_period(epoch, config.pretrain_epochs)
+        if period is None:
+            return "pre-training, no autoregression"
+        if period == 0:
+            return "autoregressive, own poses only"
+        if period == 1:
+            return "autoregressive, full teacher forcing"
+        return f"autoregressive, ground truth every {period} frames"
+
     def loss(self, model, speech, poses, epoch: int, config: GesticulatorConfig):
         """Loss on the central ``train_frames`` of ``(B, 70, ·)`` sequences at ``epoch``'s teacher forcing."""
         period = teacher_forcing_period(epoch, config.pretrain_epochs)
