@@ -32,11 +32,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     g = sub.add_parser(
         "generate",
-        help="generate gesture motion (BVH) from speech, without a robot",
-        description="Run the speech front-end and a gesture generator; write the canonical human motion as BVH.",
+        help="generate gesture motion (BVH or SMPL-X) from speech, without a robot",
+        description="Run the speech front-end and a gesture generator; write the canonical human motion as BVH "
+        "(FILE.bvh) or as SMPL-X parameters in BEAT2's layout (FILE.npz: upper body filled, the rest zero), which "
+        "`robogest eval --fgd-weights` scores.",
     )
     add_speech_args(g, text_positional=False)
-    g.add_argument("--out", required=True, metavar="FILE.bvh", help="motion file to write")
+    g.add_argument(
+        "--out", required=True, metavar="FILE.bvh|FILE.npz", help="motion file to write: BVH, or SMPL-X (.npz)"
+    )
     g.add_argument(
         "--generator",
         default="rhythm",
@@ -76,15 +80,18 @@ def run_analyze(args: argparse.Namespace) -> int:
 
 
 def run_generate(args: argparse.Namespace) -> int:
+    from robogest.errors import InputError
     from robogest.generators import make_generator
-    from robogest.motion import save_bvh
+    from robogest.motion import save_motion
 
     checks.check_outputs(
         {"--out": args.out, "--plot": args.plot}, {**speech_inputs(args), "--checkpoint": args.checkpoint}
     )
+    if Path(args.out).suffix.lower() not in (".bvh", ".npz"):  # before any work (it wrote BVH into any name)
+        raise InputError(f"--out {args.out}: name the motion file .bvh (BVH) or .npz (SMPL-X parameters)")
     speech = speech_from_args(args)
     motion = make_generator(args.generator, **generator_options(args)).generate(speech, seed=args.seed)
-    save_bvh(motion, Path(args.out))
+    save_motion(motion, Path(args.out))
     print(f"{motion.n_frames} frames at {motion.fps:g} fps ({motion.duration_s:.2f} s) written to {args.out}")
     if args.plot:
         from robogest.viz.plot import plot_motion

@@ -1,4 +1,4 @@
-"""Human motion: skeletons, the canonical upper body, and BVH / SMPL-X import and BVH export.
+"""Human motion: skeletons, the canonical upper body, and BVH / SMPL-X import and export.
 
 Every importer returns a :class:`HumanMotion` on :data:`CANONICAL` (Y up, facing +Z, +X = left, metres, T-pose rest)
 so generators, metrics and retargeting see one skeleton whatever the dataset.
@@ -14,10 +14,11 @@ from robogest.motion.bvh import load_bvh, load_bvh_raw, save_bvh
 from robogest.motion.human_motion import HumanMotion
 from robogest.motion.mapping import NAME_MAPS, map_to_canonical
 from robogest.motion.skeleton import CANONICAL, Skeleton
-from robogest.motion.smplx import load_smplx
+from robogest.motion.smplx import load_smplx, save_smplx
 
-#: File suffix -> loader used by :func:`load_motion`.
+#: File suffix -> loader used by :func:`load_motion`, and writer used by :func:`save_motion`.
 _LOADERS = {".bvh": load_bvh, ".npz": load_smplx}
+_SAVERS = {".bvh": save_bvh, ".npz": save_smplx}
 
 
 def load_motion(path: str | os.PathLike) -> HumanMotion:
@@ -32,6 +33,18 @@ def load_motion(path: str | os.PathLike) -> HumanMotion:
     return loader(path)
 
 
+def save_motion(motion: HumanMotion, path: str | os.PathLike) -> None:
+    """Write ``motion`` choosing the format by suffix: ``.bvh`` (BVH), ``.npz`` (SMPL-X parameters, BEAT2 layout)."""
+    path = Path(path)
+    saver = _SAVERS.get(path.suffix.lower())
+    if saver is None:
+        raise InputError(
+            f"{path}: cannot write motion as {path.suffix or '(no suffix)'!r}; name the file .bvh (BVH) or .npz "
+            "(SMPL-X parameters in BEAT2's layout)"
+        )
+    saver(motion, path)
+
+
 __all__ = [
     "CANONICAL",
     "NAME_MAPS",
@@ -43,4 +56,6 @@ __all__ = [
     "load_smplx",
     "map_to_canonical",
     "save_bvh",
+    "save_motion",
+    "save_smplx",
 ]

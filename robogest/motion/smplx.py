@@ -1,4 +1,4 @@
-"""SMPL-X / SMPL-H / SMPL parameter files (``.npz``: BEAT2/EMAGE, AMASS) onto :data:`CANONICAL`.
+"""SMPL-X / SMPL-H / SMPL parameter files (``.npz``: BEAT2/EMAGE, AMASS) onto :data:`CANONICAL`, and back.
 
 SMPL-family rest poses are a T-pose, Y up, facing +Z, +X = the body's left, which is the canonical convention, and the
 upper-body chain (pelvis, spine1-3, neck, head, collars, shoulders, elbows, wrists) has exactly the canonical
@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from robogest.errors import InputError
-from robogest.fileio import npz_keys, read_npz
+from robogest.fileio import atomic_path, npz_keys, read_npz
 from robogest.motion import rotations as R
 from robogest.motion.human_motion import HumanMotion, check_take
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
@@ -131,3 +131,46 @@ def load_smplx(path: str | os.PathLike, fps: float | None = None) -> HumanMotion
     pelvis = R.rotate(axis_change, trans + SMPLX_PELVIS_OFFSET_M)  # (T, 3)
     root = pelvis * (CANONICAL_PELVIS_HEIGHT_M / SMPLX_PELVIS_HEIGHT_M)
     return HumanMotion(fps=fps, rotations=R.normalize(rot), root_pos_m=root, skeleton=CANONICAL)
+
+
+#: Frame-wise arrays of a BEAT2 SMPL-X file besides ``poses`` and ``trans``, with their widths (filled with zeros).
+_BEAT2_ZERO_FRAMES = {"expressions": 100}
+_BEAT2_BETAS = 300
+
+
+#: BEAT2's frame rate, which its FGD evaluator requires.
+BEAT2_FPS = 30.0
+
+
+def save_smplx(motion: HumanMotion, path: str | os.PathLike, fps: float = BEAT2_FPS) -> None:
+    """Write ``motion`` (on :data:`CANONICAL`) as an SMPL-X parameter ``.npz`` in BEAT2's layout, atomically.
+
+    The inverse of :func:`load_smplx`: the 14 upper-body joints' local rotations copy into their SMPL-X slots, the
+    pelvis position becomes ``trans``; legs, jaw, eyes, fingers, ``betas`` and ``expressions`` are zero. This lets
+    the BEAT2/EMAGE FGD evaluator (``robogest eval --fgd-weights``) score any generator's output.
+
+    Keys: ``poses`` ``(T, 165)`` float32 axis-angle radians, ``trans`` ``(T, 3)`` metres, ``betas`` ``(300,)``,
+    ``expressions`` ``(T, 100)``, ``mocap_frame_rate`` (int when whole), ``model`` ``"smplx2020"``, ``gender``
+    ``"neutral"``. The motion is resampled to ``fps`` (BEAT2's 30 by default: the evaluator reads only that).
+    """
+    if motion.skeleton.names != CANONICAL.names:
+        raise InputError(f"{path}: SMPL-X export needs motion on the canonical skeleton (map it first)")
+    if abs(motion.fps - fps) > 1e-9:
+        motion = motion.resample(fps)
+    n = motion.n_frames
+    poses = np.zeros((n, 55, 3))  # (T, 55 SMPL-X joints, axis-angle)
+    for name, i in SMPLX_INDEX.items():
+        poses[:, i] = R.to_axis_angle(motion.rotations[:, CANONICAL.index(name)])
+    trans = motion.root_pos_m * (SMPLX_PELVIS_HEIGHT_M / CANONICAL_PELVIS_HEIGHT_M) - SMPLX_PELVIS_OFFSET_M  # (T, 3)
+    fps = round(motion.fps) if abs(motion.fps - round(motion.fps)) < 1e-9 else float(motion.fps)
+    arrays = {
+        "poses": poses.reshape(n, 165).astype(np.float32),
+        "trans": trans.astype(np.float64),
+        "betas": np.zeros(_BEAT2_BETAS, np.float32),
+        **{k: np.zeros((n, w)) for k, w in _BEAT2_ZERO_FRAMES.items()},
+        "mocap_frame_rate": np.asarray(fps),
+        "model": np.asarray("smplx2020"),
+        "gender": np.asarray("neutral"),
+    }
+    with atomic_path(path, suffix=".npz") as tmp:
+        np.savez(tmp, **arrays)

@@ -132,3 +132,17 @@ def test_video_has_audio_and_frames(tmp_path):
         kinds = {s.type for s in f.streams}
         assert kinds == {"video", "audio"}
         assert f.streams.video[0].frames > 10 or f.duration > 0
+
+
+def test_generate_writes_smplx_for_npz_and_refuses_other_names(tmp_path, capsys):
+    """``generate --out h.npz`` wrote BVH text into the .npz-named file (exit 0); now it is SMPL-X in BEAT2's
+    layout, and a name that is neither .bvh nor .npz is refused before any work."""
+    from robogest.motion import load_smplx
+
+    out = tmp_path / "h.npz"
+    assert main(["generate", "--text", "Hello there.", "--out", str(out)]) == 0
+    assert np.load(out)["poses"].shape[1] == 165 and int(np.load(out)["mocap_frame_rate"]) == 30  # the FGD's rate
+    assert load_smplx(out).n_frames > 10
+    assert main(["generate", "--text", "Hello there.", "--out", str(tmp_path / "h.txt")]) == 2
+    assert "h.txt: name the motion file .bvh (BVH) or .npz (SMPL-X parameters)" in capsys.readouterr().err
+    assert not (tmp_path / "h.txt").exists()

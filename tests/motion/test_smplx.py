@@ -79,3 +79,54 @@ def test_an_all_zero_unused_array_is_no_decompression_bomb(tmp_path, rng):
     np.savez_compressed(tmp_path / "b.npz", poses=np.zeros((20_000, 165)), mocap_frame_rate=30.0)
     with pytest.raises(InputError, match=r"b\.npz: array 'poses' expands from \d+ to 26400128 bytes"):
         load_smplx(tmp_path / "b.npz")
+
+
+def test_save_smplx_is_load_smplxs_inverse_in_beat2s_layout(tmp_path):
+    """Canonical motion -> SMPL-X .npz (BEAT2's keys and shapes) -> the same canonical motion."""
+    from robogest.motion import HumanMotion, save_motion
+
+    rng = np.random.default_rng(1)
+    n = 20
+    rot = np.broadcast_to(R.IDENTITY, (n, CANONICAL.n_joints, 4)).copy()
+    for name in SMPLX_INDEX:
+        rot[:, CANONICAL.index(name)] = R.from_axis_angle(rng.uniform(-0.6, 0.6, (n, 3)))
+    root = np.c_[rng.uniform(-0.1, 0.1, n), np.full(n, 1.0), rng.uniform(-0.1, 0.1, n)]
+    motion = HumanMotion(fps=30.0, rotations=rot, root_pos_m=root, skeleton=CANONICAL)
+    path = tmp_path / "g.npz"
+    save_motion(motion, path)
+    d = np.load(path)
+    assert {k: d[k].shape for k in d.files} == {
+        "poses": (n, 165), "trans": (n, 3), "betas": (300,), "expressions": (n, 100), "mocap_frame_rate": (),
+        "model": (), "gender": (),
+    }  # fmt: skip
+    assert d["poses"].dtype == np.float32 and int(d["mocap_frame_rate"]) == 30 and str(d["model"]) == "smplx2020"
+    legs = [i for i in range(55) if i not in SMPLX_INDEX.values()]
+    assert not d["poses"].reshape(n, 55, 3)[:, legs].any()  # legs, jaw, eyes, fingers at zero
+    back = load_smplx(path)
+    assert back.fps == 30.0 and back.n_frames == n
+    for name in SMPLX_INDEX:
+        j = CANONICAL.index(name)
+        same = np.abs(np.sum(back.rotations[:, j] * rot[:, j], axis=-1))  # |<q1, q2>| = 1: same rotation
+        assert np.allclose(same, 1.0, atol=1e-6), name
+    np.testing.assert_allclose(back.root_pos_m, root, atol=1e-9)
+
+
+def test_motion_is_written_only_as_bvh_or_smplx(tmp_path):
+    from robogest.motion import HumanMotion, save_motion
+
+    motion = HumanMotion(fps=30.0, rotations=np.broadcast_to(R.IDENTITY, (3, CANONICAL.n_joints, 4)).copy(),
+                         root_pos_m=np.zeros((3, 3)), skeleton=CANONICAL)  # fmt: skip
+    with pytest.raises(InputError, match=r"m\.txt: cannot write motion as '\.txt'; name the file \.bvh .* or \.npz"):
+        save_motion(motion, tmp_path / "m.txt")
+    assert not (tmp_path / "m.txt").exists()
+
+
+@pytest.mark.shared
+def test_a_beat2_take_survives_export_and_reload(shared_data, tmp_path):
+    """Real BEAT2 motion onto the canonical skeleton, exported, read back: the same upper-body motion."""
+    from robogest.motion import save_smplx
+
+    m = load_smplx(shared_data / "beat2" / "2_scott_0_1_1.npz")
+    save_smplx(m, tmp_path / "b.npz")
+    back = load_smplx(tmp_path / "b.npz")
+    np.testing.assert_allclose(back.positions(), m.positions(), atol=1e-5)  # joint positions, metres
