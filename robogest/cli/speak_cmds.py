@@ -233,7 +233,7 @@ def run_speak(args: argparse.Namespace) -> int:
     if args.plot:
         from robogest.viz.plot import plot_motion
 
-        plot_motion(args.plot, result.motion, speech, traj)
+        plot_motion(args.plot, result.motion, speech, traj, robot)
         lines.append(f"plot: {args.plot}")
     _report(lines)  # before the (long) playback, so a pipe or log sees it at once
     _finish(args, robot, traj, speech.audio, speech.sr, backend)

@@ -55,25 +55,32 @@ def plot_pmb_curves(curves: dict[str, dict], path: str | Path, title: str = "") 
 
 
 def plot_trajectory(traj, path: str | Path, title: str = "") -> Path:
-    """Joint commands over time with position limits (dashed) and silent periods shaded."""
+    """Joint commands over time with position limits (dotted) and silent periods shaded; joints coloured by limb
+    with a legend column per limb below the axes (the same key as ``--plot``), so that no legend covers the lines."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    from robogest.viz.joints import column_legend, joint_groups, joint_styles
+
     fig = _figure(8.0, 5.0)
+    fig.set_layout_engine("constrained")
     ax = fig.add_subplot()
     t = traj.t_s
-    for j, name in enumerate(traj.joint_names):
-        (line,) = ax.plot(t, traj.q_rad[:, j], label=name)
-        ax.axhline(traj.q_min_rad[j], color=line.get_color(), ls=":", lw=0.7)
-        ax.axhline(traj.q_max_rad[j], color=line.get_color(), ls=":", lw=0.7)
+    styles = joint_styles(traj.joint_names)
+    for j, s in enumerate(styles):
+        ax.plot(t, traj.q_rad[:, j], color=s.colour, ls=s.line_style)
+        ax.axhline(traj.q_min_rad[j], color=s.colour, ls=":", lw=0.7)
+        ax.axhline(traj.q_max_rad[j], color=s.colour, ls=":", lw=0.7)
     if traj.n_frames:
         ax.fill_between(
-            t,
-            0,
-            1,
-            where=traj.silent.astype(bool),
-            color="grey",
-            alpha=0.2,
-            transform=ax.get_xaxis_transform(),
-            label="silent",
+            t, 0, 1, where=traj.silent.astype(bool), color="grey", alpha=0.2, transform=ax.get_xaxis_transform()
         )
     ax.set(xlabel="time (s)", ylabel="angle (rad)", title=title)
-    ax.legend(fontsize="small", ncol=2)
+    columns: dict[str, list] = {"marks": [(Line2D([], [], color="0.3", ls=":", lw=0.7), "limits")]}
+    columns["marks"].append((Patch(color="grey", alpha=0.2), "silent"))
+    for group, idx in joint_groups(traj.joint_names).items():
+        columns[group] = [
+            (Line2D([], [], color=styles[j].colour, ls=styles[j].line_style), traj.joint_names[j]) for j in idx
+        ]
+    column_legend(fig, columns, loc="outside lower center", fontsize="small", frameon=False)
     return _save(fig, path)
