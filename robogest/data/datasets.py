@@ -4,6 +4,9 @@ Layouts (detected from the folder):
 
 GENEA 2020 / Trinity
     ``Audio/NAME.wav``, ``Motion/NAME.bvh``, optional ``Transcripts/NAME.json`` (word timings).
+GENEA 2022 / 2023 (Talking With Hands)
+    ``wav/NAME.wav``, ``bvh/NAME.bvh``, optional ``tsv/NAME.tsv`` (``start<TAB>end<TAB>word``); a split folder
+    (``trn/``, ``val/``) holding ``main-agent/`` reads the main agent (the interlocutor is not a take).
 BEAT2
     ``wave16k/NAME.wav``, ``smplxflame_30/NAME.npz``, optional ``textgrid/NAME.TextGrid``.
 Plain folder of pairs
@@ -120,6 +123,9 @@ def _layout_dirs(root: Path) -> tuple[Path, Path, Path, tuple[str, ...]]:
     layout = detect_layout(root)
     if layout == "genea":
         return root / "Audio", root / "Motion", root / "Transcripts", (".bvh",)
+    if layout == "genea2023":
+        agent = root / "main-agent" if (root / "main-agent" / "wav").is_dir() else root
+        return agent / "wav", agent / "bvh", agent / "tsv", (".bvh",)
     if layout == "beat2":
         return root / "wave16k", root / "smplxflame_30", root / "textgrid", (".npz",)
     return root, root, root, _MOTION_EXT
@@ -146,10 +152,13 @@ def _pair(audio_dir: Path, motion_dir: Path, text_dir: Path | None, motion_ext: 
 
 
 def detect_layout(root: str | os.PathLike) -> str:
-    """``"genea"``, ``"beat2"`` or ``"pairs"``."""
+    """``"genea"``, ``"genea2023"``, ``"beat2"`` or ``"pairs"``."""
     root = Path(root)
     if (root / "Audio").is_dir() and (root / "Motion").is_dir():
         return "genea"
+    for agent in (root, root / "main-agent"):
+        if (agent / "wav").is_dir() and (agent / "bvh").is_dir():
+            return "genea2023"
     if (root / "wave16k").is_dir() and (root / "smplxflame_30").is_dir():
         return "beat2"
     return "pairs"
@@ -170,8 +179,9 @@ def discover_takes(root: str | os.PathLike) -> list[TakeFiles]:
     takes = _pair(*_layout_dirs(root))
     if not takes:
         raise InputError(
-            f"{root}: no takes found ({layout} layout). Expected GENEA (Audio/*.wav + Motion/*.bvh), BEAT2 "
-            "(wave16k/*.wav + smplxflame_30/*.npz) or pairs (NAME.wav + NAME.bvh|NAME.npz) in one folder."
+            f"{root}: no takes found ({layout} layout). Expected GENEA 2020 (Audio/*.wav + Motion/*.bvh), GENEA "
+            "2023 (wav/*.wav + bvh/*.bvh [+ tsv/], or main-agent/ holding them), BEAT2 (wave16k/*.wav + "
+            "smplxflame_30/*.npz) or pairs (NAME.wav + NAME.bvh|NAME.npz) in one folder."
         )
     return takes
 

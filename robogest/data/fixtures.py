@@ -115,8 +115,8 @@ def make_fixture_dataset(
         Length of each take, s (audio and motion equally long).
     motion_format : {"bvh", "npz"}
         Canonical-skeleton BVH or SMPL-X parameters.
-    layout : {"pairs", "genea", "beat2"}
-        Folder layout (see :mod:`robogest.data.datasets`); ``genea`` needs BVH, ``beat2`` npz.
+    layout : {"pairs", "genea", "genea2023", "beat2"}
+        Folder layout (see :mod:`robogest.data.datasets`); ``genea`` and ``genea2023`` need BVH, ``beat2`` npz.
     seed : int
         Fixes words, timings and noise.
     """
@@ -130,12 +130,13 @@ def make_fixture_dataset(
     dirs = {
         "pairs": ("", "", ""),
         "genea": ("Audio", "Motion", "Transcripts"),
+        "genea2023": ("main-agent/wav", "main-agent/bvh", "main-agent/tsv"),
         "beat2": ("wave16k", "smplxflame_30", "textgrid"),
     }
     if layout not in dirs:
         raise InputError(f"layout must be one of {', '.join(dirs)}, got {layout!r}")
-    if (layout, motion_format) in (("genea", "npz"), ("beat2", "bvh")):
-        raise InputError(f"the {layout} layout uses {'bvh' if layout == 'genea' else 'npz'} motion")
+    if (layout, motion_format) in (("genea", "npz"), ("genea2023", "npz"), ("beat2", "bvh")):
+        raise InputError(f"the {layout} layout uses {'npz' if layout == 'beat2' else 'bvh'} motion")
     root = Path(root)
     a_dir, m_dir, t_dir = (root / d for d in dirs[layout])
     for d in (a_dir, m_dir, t_dir):
@@ -154,6 +155,9 @@ def make_fixture_dataset(
             _write_npz(m_dir / f"{name}.npz", rv)
         if layout == "beat2":
             _write_textgrid(t_dir / f"{name}.TextGrid", words, duration_s)
+        elif layout == "genea2023":  # start<TAB>end<TAB>word, no header
+            rows = "".join(f"{s:.3f}\t{e:.3f}\t{w}\n" for w, s, e in words)
+            (t_dir / f"{name}.tsv").write_text(rows, encoding="utf-8")
         else:
             doc = {"words": [{"word": w, "start_time": f"{s:.3f}s", "end_time": f"{e:.3f}s"} for w, s, e in words]}
             (t_dir / f"{name}.json").write_text(json.dumps(doc, indent=1), encoding="utf-8")

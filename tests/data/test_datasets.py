@@ -25,7 +25,9 @@ from robogest.motion.skeleton import CANONICAL
 CFG = FeatureConfig(text_encoder="hash-test", text_encoder_kwargs={"dim": 8})
 
 
-@pytest.mark.parametrize(("layout", "fmt"), [("pairs", "bvh"), ("pairs", "npz"), ("genea", "bvh"), ("beat2", "npz")])
+@pytest.mark.parametrize(
+    ("layout", "fmt"), [("pairs", "bvh"), ("pairs", "npz"), ("genea", "bvh"), ("genea2023", "bvh"), ("beat2", "npz")]
+)
 def test_layouts_give_the_same_aligned_takes(tmp_path, layout, fmt):
     root = make_fixture_dataset(tmp_path / layout, n_takes=2, duration_s=4.0, motion_format=fmt, layout=layout)
     assert detect_layout(root) == layout
@@ -43,6 +45,17 @@ def test_layouts_give_the_same_aligned_takes(tmp_path, layout, fmt):
         np.testing.assert_allclose(t.acoustic[:, :64], r.acoustic[:, :64], atol=1e-4)  # log-mel
         np.testing.assert_allclose(t.acoustic[:, 64:], r.acoustic[:, 64:], atol=0.02)  # TextGrid keeps more digits
         assert (t.text[:, 0] != -15.0).any() and (t.text == -15.0).all(axis=1).any()  # words and silence
+
+
+def test_genea2023_split_folder_or_its_main_agent_folder(tmp_path):
+    """GENEA 2023 ships ``trn/main-agent/{wav,bvh,tsv}`` (and ``interloctr/``): either folder can be given."""
+    root = make_fixture_dataset(tmp_path / "trn", n_takes=2, duration_s=3.0, layout="genea2023")
+    (root / "interloctr" / "wav").mkdir(parents=True)  # the interlocutor is not read
+    for where in (root, root / "main-agent"):
+        assert detect_layout(where) == "genea2023"
+        files = discover_takes(where)
+        assert [f.name for f in files] == ["take_000", "take_001"]
+        assert all(f.transcript is not None and f.transcript.suffix == ".tsv" for f in files)
 
 
 def test_fixture_motion_follows_audio_energy(tmp_path):
