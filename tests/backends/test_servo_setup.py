@@ -260,3 +260,25 @@ def test_setup_refuses_bad_requests_before_any_question(robots, monkeypatch, cap
     make_robot(robots, family="feetech", protocol=0.0, n_joints=1, baudrate=9600, name="slowbot")
     assert main(["servo", "setup", "--robot", "slowbot", "--port", "/dev/null"]) == 2
     assert "sts servos cannot be set to 9600 baud" in capsys.readouterr().err
+
+
+def test_a_failed_write_says_which_settings_the_servo_answers_with(robots, monkeypatch, capsys):
+    from robogest.backends.bringup import ServoLink
+    from robogest.errors import BackendError
+
+    robot = _setup_robot(robots)
+    write = ServoLink.write
+
+    def baud_write_lost(self, sid, reg, value, attempts=3):
+        if reg.name == "BAUD_RATE":
+            raise BackendError(f"servo id {sid}: writing BAUD_RATE: [TxRxResult] There is no status packet!")
+        return write(self, sid, reg, value, attempts)
+
+    monkeypatch.setattr(ServoLink, "write", baud_write_lost)
+    with VirtualBus(robot) as bus:
+        _factory_bus(bus)
+        monkeypatch.setattr("builtins.input", _hand(bus, robot))
+        assert main(["servo", "setup", "--robot", "newbot", "--port", bus.port, "--max-id", "10"]) == 5
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("robogest: error: joint j0's servo: servo id 5: reading ID: ")
+    assert err.endswith("; it answers with the new id but its old baud rate (id 5 at 1000000 baud); set up: none")
