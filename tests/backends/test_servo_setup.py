@@ -114,7 +114,7 @@ def test_scan_without_port_lists_them_and_asks_for_port(monkeypatch, capsys, por
 
 
 # --- setup -------------------------------------------------------------------------------------------------
-FACTORY_ID, FACTORY_BAUD_VALUE = 1, 0  # STS3215 out of the box: id 1 at 1 Mbaud
+FACTORY_ID, FACTORY_BAUD = 1, {"STS3215": 1_000_000, "XL430-W250": 57_600}  # out of the box
 
 
 def _factory_bus(bus):
@@ -122,7 +122,8 @@ def _factory_bus(bus):
     with bus._lock:
         for s in bus.servos:
             s._store(s.spec.reg("id"), FACTORY_ID)
-            s._store(s.spec.reg("baud"), FACTORY_BAUD_VALUE)
+            rate = FACTORY_BAUD[s.spec.name]
+            s._store(s.spec.reg("baud"), next(v for v, b in s.spec.baud_table.items() if b == rate))
             s.flash = bytes(s.mem[: s.spec.eeprom_end])
             s.vanished = True
 
@@ -148,13 +149,16 @@ def _hand(bus, robot, plug=None):
     return Answers(on_prompt)
 
 
-def _setup_robot(robots):
-    return make_robot(robots, family="feetech", protocol=0.0, n_joints=3, ids=[5, 6, 7], baudrate=500_000,
+def _setup_robot(robots, family="feetech"):
+    protocol, baud = (0.0, 500_000) if family == "feetech" else (2.0, 1_000_000)
+    return make_robot(robots, family=family, protocol=protocol, n_joints=3, ids=[5, 6, 7], baudrate=baud,
                       name="newbot")  # fmt: skip
 
 
-def test_setup_gives_each_servo_its_id_and_baud_one_at_a_time(robots, monkeypatch, capsys):
-    robot = _setup_robot(robots)
+@pytest.mark.parametrize(("family", "factory", "baud"), [("feetech", 1_000_000, 500_000),
+                                                          ("dynamixel", 57_600, 1_000_000)])  # fmt: skip
+def test_setup_gives_each_servo_its_id_and_baud_one_at_a_time(robots, monkeypatch, capsys, family, factory, baud):
+    robot = _setup_robot(robots, family)
     with VirtualBus(robot) as bus:
         _factory_bus(bus)
         answers = _hand(bus, robot)
@@ -162,14 +166,14 @@ def test_setup_gives_each_servo_its_id_and_baud_one_at_a_time(robots, monkeypatc
         assert main(["servo", "setup", "--robot", "newbot", "--port", bus.port, "--max-id", "10"]) == 0
         out = capsys.readouterr().out
         for j, sid in (("j0", 5), ("j1", 6), ("j2", 7)):
-            assert f"{j}: id 1 -> {sid}, 1000000 -> 500000 baud; checked, torque off" in out
+            assert f"{j}: id 1 -> {sid}, {factory} -> {baud} baud; checked, torque off" in out
         asked = [p.split(" (")[0] for p in answers.prompts]
         assert asked == [f"Connect ONLY the servo of joint j{k}" for k in range(3)]
         _plug(bus, robot, robot.joint_names)
         with bus._lock:
             for s in bus.servos:
                 s.power_cycle()  # the settings are in EEPROM, not only in RAM
-        assert sorted(s.id for s in bus.servos) == [5, 6, 7] and {s.baudrate for s in bus.servos} == {500_000}
+        assert sorted(s.id for s in bus.servos) == [5, 6, 7] and {s.baudrate for s in bus.servos} == {baud}
         assert not any(s.torque_on for s in bus.servos)
         assert main(["servo", "scan", "--robot", "newbot", "--port", bus.port, "--max-id", "10"]) == 0
 
