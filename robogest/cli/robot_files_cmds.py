@@ -82,7 +82,10 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument("--robot", required=True, help="robot name or YAML path whose servos it calibrates")
     p.add_argument(
-        "--out", type=Path, help="calibrated YAML to write (default: NAME_calibrated.yaml beside the robot's)"
+        "--out",
+        type=Path,
+        help="calibrated YAML to write: base: ROBOT and the calibrated values only, so it survives moves "
+        "(docs/servos.md; default: NAME_calibrated.yaml beside the robot's)",
     )
     p.add_argument("--force", action="store_true", help="overwrite an existing --out")
     p.set_defaults(func=cmd_import_lerobot_calibration)

@@ -152,6 +152,9 @@ def calibrate(args: argparse.Namespace) -> int:
         backend.shutdown()
 
     doc = yaml.safe_load(read_text_capped(src, what="robot file"))
+    if robot.base is not None:  # a file of changes to its base (docs/servos.md): the copy gets every value
+        doc = {**robot.model_dump(mode="json", by_alias=True, exclude_none=True), "model": str(robot.model_path)}
+        del doc["base"]
     for jd in doc["joints"]:
         if jd["name"] in measured:
             m = measured[jd["name"]]

@@ -1,4 +1,5 @@
-"""``robogest virtual-bus`` and ``robogest servo scan|doctor|calibrate|jog|ping|read|write|check``: bring-up."""
+"""``robogest virtual-bus`` and ``robogest servo scan|doctor|calibrate|jog|ping|read|write|check`` (``find-port`` and
+``setup``: servo_setup_cmds): bring-up."""
 
 from __future__ import annotations
 
@@ -39,7 +40,8 @@ def register(subparsers: Any) -> None:
     vb.set_defaults(func=_virtual_bus)
 
     servo = subparsers.add_parser(
-        "servo", help="talk to servos directly: scan, doctor, calibrate, jog, ping, read, write, check"
+        "servo",
+        help="talk to servos directly: find-port, setup, scan, doctor, calibrate, jog, ping, read, write, check",
     )
     ss = servo.add_subparsers(dest="servo_command", metavar="ACTION")
     scan = ss.add_parser(
@@ -52,7 +54,7 @@ def register(subparsers: Any) -> None:
         "answers but no joint has (UNEXPECTED); exit code 5 unless every row is ok. For wiring and numbering "
         "servos with the YAML in hand.",
     )
-    scan.add_argument("--port", help="serial port (required without --robot; with it default the YAML's bus.port)")
+    scan.add_argument("--port", help="serial port (default: the --robot YAML's bus.port, else the one USB serial port)")
     scan.add_argument("--robot", help="robot name or YAML path: compare the bus with its bus section")
     scan.add_argument("--protocol", choices=_PROTOCOLS, action="append", help="repeatable; default all")
     scan.add_argument("--baud", type=checks.baud, action="append", help="repeatable; default the common ones")
@@ -126,6 +128,9 @@ def register(subparsers: Any) -> None:
             p.add_argument("--value", type=checks.number(-(2**31), 2**32 - 1, integer=True), required=True)
         p.set_defaults(func=_one)
     add_check_parser(ss)
+    from robogest.cli.servo_setup_cmds import add_parsers
+
+    add_parsers(ss)
     servo.set_defaults(func=lambda a: (servo.print_help(), 2)[1])
 
 
@@ -188,7 +193,9 @@ def _scan(args: argparse.Namespace) -> int:
     if args.robot is not None:
         return _scan_robot(args)
     if args.port is None:
-        raise InputError("servo scan needs --port PATH (or --robot NAME, whose YAML names the port)")
+        from robogest.cli.servo_setup_cmds import port_of
+
+        args.port = port_of(None, None, "servo scan")
     found = scan(
         args.port, args.protocol, args.baud, max_id=args.max_id, per_id=args.per_id, all_protocols=args.all,
         progress=lambda k, n, what: _status(what, k, n),
@@ -216,9 +223,9 @@ def _scan_robot(args: argparse.Namespace) -> int:
         raise ConfigError(f"{robot.path or robot.name}: no bus section, so no servos to look for; add one (README)")
     if args.protocol:
         raise InputError("servo scan --robot takes the protocol from the YAML's bus section; drop --protocol")
-    port = args.port or robot.bus.port
-    if port is None:
-        raise InputError(f"{robot.path or robot.name}: bus.port is not set; pass --port PATH")
+    from robogest.cli.servo_setup_cmds import port_of
+
+    port = port_of(args.port, robot, "servo scan")
     proto = protocol_name(robot.bus.family, robot.bus.protocol)
     bauds = args.baud or [robot.bus.baudrate]
     found = scan_robot(port, robot, bauds, max_id=args.max_id, per_id=args.per_id,

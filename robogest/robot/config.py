@@ -217,9 +217,11 @@ class ImportRecord(_Strict):
 
 
 class RobotConfig(_Strict):
-    """A whole robot. ``model`` is the MJCF path, relative to the YAML file."""
+    """A whole robot. ``model`` is the MJCF path, relative to the YAML file (absolute when it came from a base)."""
 
     name: str
+    #: ``base: NAME``: the file holds only what differs from robot NAME (:mod:`robogest.robot.inherit`).
+    base: str | None = None
     description: str = ""
     model: str
     joints: list[JointConfig] = Field(min_length=1)
@@ -232,6 +234,8 @@ class RobotConfig(_Strict):
     #: Written by ``robogest robots import`` (YAML key ``import``): the description and the overrides it used.
     import_record: ImportRecord | None = Field(default=None, validation_alias="import", serialization_alias="import")
     path: Path | None = Field(default=None, exclude=True)
+    #: The YAML of ``base`` as found when this file was loaded.
+    base_path: Path | None = Field(default=None, exclude=True)
 
     @model_validator(mode="after")
     def _check(self) -> RobotConfig:
@@ -303,8 +307,14 @@ def _format_loc(loc: tuple[int | str, ...]) -> str:
 
 
 def load_robot_config(path: str | Path) -> RobotConfig:
-    """Read and validate one robot YAML; every problem becomes a :class:`ConfigError` naming file and key."""
-    path = Path(path)
+    """Read and validate one robot YAML; every problem becomes a :class:`ConfigError` naming file and key.
+
+    A file with ``base: NAME`` is merged onto robot NAME first (:mod:`robogest.robot.inherit`)."""
+    return _load(Path(path), ())
+
+
+def _load(path: Path, chain: tuple[Path, ...]) -> RobotConfig:
+    """:func:`load_robot_config`; ``chain``: the files whose bases led here (to refuse a loop)."""
     try:
         raw = load_yaml(read_text_capped(path, what="robot file"))
     except InputError as e:  # missing, not a regular file, too large, not UTF-8: a bad robot file (exit 3)
@@ -315,8 +325,14 @@ def load_robot_config(path: str | Path) -> RobotConfig:
         raise ConfigError(f"{path}: YAML nested too deeply to be a robot file") from None
     if not isinstance(raw, dict):
         raise ConfigError(f"{path}: expected a mapping with keys name, model, joints, retarget")
+    base_path, merged = None, ""
+    if raw.get("base") is not None:
+        from robogest.robot.inherit import resolve_base
+
+        raw, base_path = resolve_base(raw, path, chain, _load)
+        merged = f" (merged onto base {raw['base']}, {base_path})"
     try:
-        cfg = RobotConfig.model_validate({**raw, "path": path})
+        cfg = RobotConfig.model_validate({**raw, "path": path, "base_path": base_path})
     except ValidationError as e:
         problems = []
         for err in e.errors():
@@ -325,7 +341,7 @@ def load_robot_config(path: str | Path) -> RobotConfig:
                 msg = f"{err['input']!r} is not a finite number; write a real value (NaN and .inf are not allowed)"
             problems.append(f"key {_format_loc(err['loc'])}: {msg}")
         # One line (the CLI prints every error as one line), every problem in it.
-        raise ConfigError(f"{path}: invalid robot definition: " + "; ".join(problems)) from None
+        raise ConfigError(f"{path}: invalid robot definition: " + "; ".join(problems) + merged) from None
     if not cfg.model_path.is_file():
         raise ConfigError(
             f"{path}: key model: MuJoCo file {cfg.model_path} does not exist; fix the path (relative to the YAML)"

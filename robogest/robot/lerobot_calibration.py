@@ -20,6 +20,9 @@ applied again), so for a robot whose joint zero and signs are LeRobot's (the shi
 Motors are matched to the robot's joints by name, and each must have its joint's servo id: a calibration of another
 robot (or of a LeRobot type with the other servo family, told by the folder it lies in) is refused, not matched.
 
+The copy names the robot it calibrates (``base: so101_sts3215``, :mod:`robogest.robot.inherit`) and holds only the
+calibrated values, so moving it or reinstalling robogest keeps it working (a copied ``model:`` path did not).
+
 robogest uses the model's ticks per revolution (4096 for an STS3215), LeRobot ``resolution - 1`` (4095): 0.02 %.
 """
 
@@ -27,14 +30,15 @@ from __future__ import annotations
 
 import json
 import math
-import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import yaml
 
 from robogest.errors import ConfigError, InputError
-from robogest.fileio import atomic_path, read_text_capped
+from robogest.fileio import atomic_path, load_yaml, read_text_capped
 from robogest.robot.config import RobotConfig, load_robot_config
 
 _FIELDS = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
@@ -133,6 +137,41 @@ def _check_matches(calib: dict[str, MotorCalibration], calib_path: str | Path, r
         )
 
 
+def _overlay(robot: RobotConfig, out: Path) -> tuple[str, dict[str, Any]]:
+    """``(base name, what the copy holds beside it)``. The copy names its base robot (``base:``) instead of copying
+    it: ``robot`` itself, or, when ``robot`` has a base, that base with ``robot``'s own changes kept. The name must
+    find that same file from ``out``'s folder (:func:`robogest.robot.registry.find_base`)."""
+    from robogest.robot.registry import find_base
+
+    assert robot.path is not None
+    if robot.base is None:
+        base, base_path, overlay = robot.path.stem, robot.path, {}
+    else:
+        base, base_path = robot.base, robot.base_path
+        raw = load_yaml(read_text_capped(robot.path, what="robot file"))
+        overlay = {k: v for k, v in raw.items() if k not in ("name", "base", "description")}
+        if "model" in overlay:  # relative to the robot's folder, not necessarily the copy's
+            overlay["model"] = str(robot.model_path)
+    found = find_base(base, out.resolve())
+    if found is None or base_path is None or found.resolve() != base_path.resolve():
+        raise InputError(
+            f"--out {out}: the copy names its base robot {base!r} ({base_path}), but from {out.parent} that name "
+            f"finds {found or 'no robot'}; write the copy beside {base_path}, or put its folder on $ROBOGEST_ROBOTS;"
+            " nothing written"
+        )
+    return base, overlay
+
+
+def _joint_entry(overlay: dict[str, Any], name: str) -> dict[str, Any]:
+    """The copy's entry for joint ``name`` (added when missing)."""
+    joints = overlay.setdefault("joints", [])
+    entry = next((j for j in joints if j.get("name") == name), None)
+    if entry is None:
+        entry = {"name": name}
+        joints.append(entry)
+    return entry
+
+
 @dataclass
 class CalibrationImport:
     """The YAML written and one line per change (what the calibration set, what it narrowed)."""
@@ -144,10 +183,11 @@ class CalibrationImport:
 def import_lerobot_calibration(
     calib_path: str | Path, robot: RobotConfig, out: str | Path | None = None, overwrite: bool = False
 ) -> CalibrationImport:
-    """Write a copy of ``robot``'s YAML with the servo mapping and limits from a LeRobot calibration file.
+    """Write a robot YAML with the servo mapping and limits from a LeRobot calibration file, over ``robot``.
 
     The copy goes to ``out`` (default ``NAME_calibrated.yaml`` beside the original) and is named after its file;
-    the original is never written.
+    it holds ``base: NAME`` (``robot``, found by name when loaded) and only the calibrated values; the original is
+    never written.
     """
     from robogest.backends import get_backend_factory
 
@@ -161,10 +201,10 @@ def import_lerobot_calibration(
         raise InputError(f"--out {out} is the robot's own YAML; write the calibrated copy elsewhere")
     if out.exists() and not overwrite:
         raise InputError(f"{out} exists; choose another --out or pass --force to overwrite it")
-    raw = yaml.safe_load(read_text_capped(src, what="robot file"))
+    base, overlay = _overlay(robot, out)
     lookup = getattr(get_backend_factory(robot.bus.family), "lookup_model", None)
     changes: list[str] = []
-    for k, j in enumerate(robot.joints):
+    for j in robot.joints:
         servo = robot.bus.servos[j.name]
         if j.name not in calib:
             changes.append(f"{j.name}: not in the calibration file; kept")
@@ -189,11 +229,9 @@ def import_lerobot_calibration(
                 f"room around joint {j.name!r}'s rest pose {j.rest_rad} rad; recalibrate with the arm in"
                 " LeRobot's middle pose, or move rest_rad (and the MJCF home key)"
             )
-        entry = raw["bus"]["servos"][j.name]
-        entry["zero_offset_rad"] = round(zero, 6)
-        entry["direction"] = direction
-        raw["joints"][k]["lower_rad"] = round(lower, 6)
-        raw["joints"][k]["upper_rad"] = round(upper, 6)
+        servos = overlay.setdefault("bus", {}).setdefault("servos", {})
+        servos.setdefault(j.name, {}).update(zero_offset_rad=round(zero, 6), direction=direction)
+        _joint_entry(overlay, j.name).update(lower_rad=round(lower, 6), upper_rad=round(upper, 6))
         narrowed = [
             f"{w} {old:+.3f} -> {new:+.3f}"
             for w, old, new in (("lower", j.lower_rad, lower), ("upper", j.upper_rad, upper))
@@ -203,18 +241,19 @@ def import_lerobot_calibration(
             f"{j.name}: motor {motor!r}, range middle tick {mid:g}: zero_offset_rad {zero:+.4f}, direction "
             f"{direction:+d}" + (f"; limits narrowed to the recorded range: {', '.join(narrowed)}" if narrowed else "")
         )
-    raw["name"] = out.stem
-    raw["description"] = f"{robot.description} (calibrated from {Path(calib_path).name})".strip()
-    rel = os.path.relpath(robot.model_path, out.resolve().parent)
-    raw["model"] = Path(rel if rel.count("..") <= 2 else robot.model_path).as_posix()  # absolute when far apart
+    described = re.sub(r" \(calibrated from [^()]*\)$", "", robot.description)  # a recalibration says it once
+    described = f"{described} (calibrated from {Path(calib_path).name})".strip()
+    doc = {"name": out.stem, "base": base, "description": described,
+           **{k: v for k, v in overlay.items() if k not in ("joints", "bus")}}  # fmt: skip
+    doc.update({k: overlay[k] for k in ("joints", "bus") if k in overlay})
     out.parent.mkdir(parents=True, exist_ok=True)
     header = (
-        f"# {out.stem}: {src.name} with servo zero offsets, directions and limits from the LeRobot calibration\n"
-        f"# {Path(calib_path).name} (robogest robots import-lerobot-calibration). See {src.name} for the "
-        "comments on each value.\n"
+        f"# {out.stem}: robot {base} with the servo zero offsets, directions and limits of the LeRobot calibration\n"
+        f"# {Path(calib_path).name} (robogest robots import-lerobot-calibration). base: names that robot, found by\n"
+        f"# name when this file is loaded; every key not here is {base}'s (docs/servos.md).\n"
     )
     with atomic_path(out, suffix=".yaml") as tmp:  # only a copy that loads replaces anything
-        tmp.write_text(header + yaml.safe_dump(raw, sort_keys=False, default_flow_style=None, width=120))
+        tmp.write_text(header + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
         try:
             load_robot_config(tmp)
         except ConfigError as e:  # name the copy it would have been, not the temporary file

@@ -6,6 +6,9 @@ Search order (the first folder holding ``NAME.yaml`` or ``NAME.yml`` wins on a n
 2. ``$ROBOGEST_ROBOTS``: one or more folders (``os.pathsep``-separated), in the order given;
 3. ``./robots/`` in the current directory;
 4. the robots packaged with robogest (:func:`robots_dir`).
+
+A robot file's ``base: NAME`` (:mod:`robogest.robot.inherit`) is looked up beside that file first, then along the
+same path (:func:`find_base`).
 """
 
 from __future__ import annotations
@@ -52,6 +55,16 @@ def list_robots() -> dict[str, Path]:
         for f in sorted([*d.glob("*.yaml"), *d.glob("*.yml")], key=lambda f: (f.stem, f.suffix != ".yaml")):
             found.setdefault(f.stem, f)
     return found
+
+
+def find_base(name: str, beside: Path) -> Path | None:
+    """The YAML of robot ``name`` that the robot file ``beside`` names as its ``base:``: ``NAME.yaml`` (or
+    ``.yml``) in that file's own folder, else the first along :func:`search_path`; None when there is none."""
+    for suffix in (".yaml", ".yml"):
+        own = beside.parent / f"{name}{suffix}"
+        if own.is_file() and own.resolve() != beside.resolve():
+            return own
+    return list_robots().get(name)
 
 
 def find_robot(name_or_path: str) -> RobotConfig:

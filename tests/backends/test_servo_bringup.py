@@ -317,3 +317,18 @@ def test_doctor_says_a_locked_servo_refused_its_baud_rate(robots, capsys):
         assert main(["servo", "doctor", "--port", bus.port, "--robot", "axbot", "--fix"]) == 5
         assert s2.baudrate == 57143
     assert "servo id 2: refused the Baud Rate write (status error 0x40)" in capsys.readouterr().err
+
+
+def test_calibrate_a_robot_with_a_base_writes_every_value(robots, monkeypatch):
+    """A robot file of changes to its base (base: NAME) has no bus section of its own: the copy read it as the whole
+    robot (KeyError on bus). The calibrated copy now holds every value, measured ones replaced."""
+    make_robot(robots, n_joints=1, name="calbot")
+    (robots / "mybot.yaml").write_text("base: calbot\njoints: [{name: j0, max_velocity_rad_s: 2.0}]\n")
+    robot = load_robot_config(robots / "mybot.yaml")
+    with VirtualBus(robot) as bus:
+        monkeypatch.setattr("sys.stdin", _Hand(bus, [(1, 2048), (1, 2600), (1, 1500)]))
+        assert main(["servo", "calibrate", "--robot", "mybot", "--port", bus.port, "--margin-rad", "0.0"]) == 0
+    copy = load_robot_config(robots / "mybot.calibrated.yaml")
+    assert copy.base is None and copy.joints[0].max_velocity_rad_s == 2.0 and copy.model_path == robot.model_path
+    assert copy.bus.servos["j0"].direction == 1
+    assert copy.joints[0].upper_rad == pytest.approx(552 * 2 * np.pi / 4096, abs=1e-3)

@@ -60,9 +60,10 @@ def test_nothing_answering_says_what_to_check_in_one_line(tmp_path, capsys):
                    "the baud rate; `robogest servo scan --port` tries all)"]  # fmt: skip
 
 
-def test_scan_without_port_or_robot_is_one_line_exit_2(capsys):
+def test_scan_without_port_or_robot_is_one_line_exit_2(capsys, monkeypatch):
+    monkeypatch.setattr("robogest.backends.servo_setup.list_ports", lambda: [])  # no port plugged in
     assert main(["servo", "scan"]) == 2
-    assert "servo scan needs --port PATH (or --robot NAME" in capsys.readouterr().err
+    assert "servo scan needs --port PATH: no USB serial port is plugged in" in capsys.readouterr().err
 
 
 def test_a_reply_lost_on_a_busy_bus_does_not_read_as_a_missing_servo(tmp_path, capsys):

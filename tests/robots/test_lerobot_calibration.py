@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
+import yaml
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
@@ -210,3 +212,68 @@ def test_calibrated_limits_stay_inside_the_recorded_range(tmp_path, so101_copy, 
         ticks = backend.rad_to_ticks(q)
         for k, name in enumerate(r.joint_names):
             assert calib[name]["range_min"] - 1 <= ticks[k] <= calib[name]["range_max"] + 1, name
+
+
+def test_the_copy_names_its_base_and_survives_a_move(tmp_path, capsys):
+    """The copy said `model: ../../v/lib/python3.11/site-packages/...`: moving it or reinstalling broke it. It now
+    holds `base: so101_sts3215` and only the calibrated values, and loads from anywhere."""
+    out = tmp_path / "a" / "so101_mine.yaml"
+    argv = ["robots", "import-lerobot-calibration", str(_write(tmp_path, CALIB)), "--robot", "so101_sts3215"]
+    assert main([*argv, "--out", str(out)]) == 0
+    capsys.readouterr()
+    doc = yaml.safe_load(out.read_text())
+    assert doc["base"] == "so101_sts3215" and "model" not in doc and "retarget" not in doc
+    assert doc["joints"][1] == {"name": "shoulder_lift", "lower_rad": -1.533981, "upper_rad": 1.533981}
+    assert doc["bus"] == {"servos": {n: {"zero_offset_rad": pytest.approx(v, abs=1e-6), "direction": d} for n, v, d in (
+        ("shoulder_pan", -23 * TICK, 1), ("shoulder_lift", -48 * TICK, 1), ("elbow_flex", -48 * TICK, -1),
+        ("wrist_flex", 2 * TICK, 1), ("wrist_roll", -0.5 * TICK, 1), ("gripper", 652 * TICK, 1))}}  # fmt: skip
+    moved = tmp_path / "elsewhere" / "deeper" / "so101_mine.yaml"
+    moved.parent.mkdir(parents=True)
+    out.rename(moved)
+    r = load_robot_config(moved)
+    shipped = find_robot("so101_sts3215")
+    assert r.model_path == shipped.model_path and r.retarget == shipped.retarget
+    assert r.bus.servos["gripper"].zero_offset_rad == pytest.approx(652 * TICK, abs=1e-6)
+    assert [str(p) for p in validate(moved)] == []
+
+
+def test_recalibrating_a_calibrated_copy_keeps_its_base_and_edits(tmp_path, so101_copy):
+    first = import_lerobot_calibration(_write(tmp_path, CALIB), so101_copy, out=tmp_path / "mine.yaml").path
+    doc = yaml.safe_load(first.read_text())
+    doc["joints"][-1]["max_velocity_rad_s"] = 1.0  # the user's own edit to the gripper
+    first.write_text(yaml.safe_dump(doc))
+    again = {**CALIB, "gripper": {**CALIB["gripper"], "range_min": 2100}}
+    res = import_lerobot_calibration(_write(tmp_path, again, "again.json"), load_robot_config(first),
+                                     out=tmp_path / "mine2.yaml")  # fmt: skip
+    doc2 = yaml.safe_load(res.path.read_text())
+    assert doc2["base"] == "so101" and doc2["description"].endswith("(calibrated from again.json)")
+    assert "follower.json" not in doc2["description"]
+    r = load_robot_config(res.path)
+    assert r.joints[-1].max_velocity_rad_s == 1.0
+    assert r.bus.servos["gripper"].zero_offset_rad == pytest.approx(702 * TICK, abs=1e-6)
+
+
+def test_a_copy_whose_base_name_would_find_another_robot_is_refused(tmp_path, so101_copy):
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "so101.yaml").write_text(so101_copy.path.read_text())  # same name, another file
+    pattern = (
+        r"--out .*other/mine\.yaml: the copy names its base robot 'so101' \(.*so101\.yaml\), but from .*other "
+        r"that name finds .*other/so101\.yaml"
+    )
+    with pytest.raises(InputError, match=pattern):
+        import_lerobot_calibration(_write(tmp_path, CALIB), so101_copy, out=tmp_path / "other" / "mine.yaml")
+    assert not (tmp_path / "other" / "mine.yaml").exists()
+
+
+def test_cli_refuses_an_so101_calibration_for_another_feetech_robot(tmp_path, capsys):
+    """Same servo family, other joints: `--robot humanoid_sts3215` mapped the SO-101's motors by servo id onto the
+    humanoid's ids 1-6 (exit 0). Refused naming the motors, exit 2, nothing written."""
+    out = tmp_path / "h.yaml"
+    rc = main(["robots", "import-lerobot-calibration", str(_write(tmp_path, CALIB)), "--robot", "humanoid_sts3215",
+               "--out", str(out)])  # fmt: skip
+    assert rc == 2 and not out.exists()
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert re.search(r"follower\.json: motors \['shoulder_pan', 'shoulder_lift', 'elbow_flex', 'wrist_flex', "
+                     r"'wrist_roll', 'gripper'\] are not joints of humanoid_sts3215 \(its joints: torso_yaw, .*\); a "
+                     r"calibration of another robot\? .*nothing written", err)  # fmt: skip
