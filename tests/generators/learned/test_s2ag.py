@@ -188,6 +188,35 @@ def test_generator_step_lowers_reconstruction_and_leaves_the_discriminator(two_s
     assert all(torch.equal(a, b) for a, b in zip(d_before, net.discriminator.parameters(), strict=True))
 
 
+def test_a_training_step_updates_the_discriminator_first_as_the_authors_code_does(two_speakers, tmp_path):
+    """The authors' ``forward_pass_s2ag`` trains D on freshly generated gestures, then G against that updated D."""
+    torch.manual_seed(0)
+    c, x, y = _fitted_windows(two_speakers, tmp_path, SMALL)
+    net = S.S2AGNet(c)
+    opts = S.SPEC.make_optimizers(net, None, c)
+    order: list[str] = []
+    spec = S.S2AGSpec()
+    d_step, g_step = spec.discriminator_step, spec.generator_step
+
+    def d(*a, **k):
+        order.append("D")
+        return d_step(*a, **k)
+
+    def g(*a, **k):
+        order.append("G")
+        return g_step(*a, **k)
+
+    spec.discriminator_step, spec.generator_step = d, g
+    net.train()
+    out = spec.train_step(net, opts, x, y, 0, c)
+    assert order == ["D", "G"]
+    assert {"d_loss", "huber", "loss"} <= set(out) and "fake" not in out
+
+
+def test_gru_depth_is_the_authors_four_layers():
+    assert S.S2AGConfig().gru_layers == 4
+
+
 # --- model selection -----------------------------------------------------------------------------------------------
 
 

@@ -54,7 +54,8 @@ class S2AGConfig:
     d_gen, d_disc : int
         GRU widths D_e = D_d = 150.
     gru_layers : int
-        Layers of both bidirectional GRUs.
+        Layers of both bidirectional GRUs: 4, the authors' code (``n_layers: 4`` in its
+        ``config/multimodal_context_v2.yml``; the paper gives no depth).
     dropout : float
         Between GRU layers.
     lr_generator, lr_discriminator, beta1 : float
@@ -86,7 +87,7 @@ class S2AGConfig:
     d_aff: int = 16
     d_gen: int = 150
     d_disc: int = 150
-    gru_layers: int = 2
+    gru_layers: int = 4
     dropout: float = 0.1
     lr_generator: float = 5e-4
     lr_discriminator: float = 1e-4

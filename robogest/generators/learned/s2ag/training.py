@@ -156,10 +156,17 @@ class S2AGSpec:
                 "kld": float(kld.detach()), "g_total": float(total.detach()), "fake": out.detach()}  # fmt: skip
 
     def train_step(self, model, optimizers, speech, poses, epoch: int, config: S2AGConfig) -> dict[str, float]:
-        """Generator step (eq. 15), then a discriminator step (eq. 16) on that batch's generated gestures."""
+        """A discriminator step (eq. 16) on gestures generated for this batch, then the generator step (eq. 15)
+        against the updated discriminator: the order of the authors' code (``forward_pass_s2ag``: "train D",
+        then "train G" on a new generator pass)."""
+        gen = _unwrap(model).generator
+        mfcc, text, speaker = split_batch(speech, config)
+        with torch.no_grad():
+            fake = gen(mfcc, text, poses, speaker)[0]  # (B, T, 27), no graph: only D learns from it
+        d_loss = self.discriminator_step(model, optimizers["discriminator"], fake, poses)
         g = self.generator_step(model, optimizers["generator"], speech, poses, config)
-        fake = g.pop("fake")
-        g["d_loss"] = self.discriminator_step(model, optimizers["discriminator"], fake, poses)
+        g.pop("fake")
+        g["d_loss"] = d_loss
         g["loss"] = g["huber"]
         return g
 
