@@ -11,7 +11,10 @@ your ``transport.output()`` (see docs/voice-agents.md). Turn 1 is spoken to the 
 from __future__ import annotations
 
 import asyncio
+import sys
 import time
+
+from loguru import logger  # Pipecat's logger
 
 from robogest import Robot
 from robogest.integrations.pipecat_scripted import LocalPipeline
@@ -46,5 +49,7 @@ async def main(robot: Robot) -> None:
 
 
 if __name__ == "__main__":
+    logger.remove()
+    logger.add(sys.stderr, level="WARNING")
     with Robot("humanoid_xl430", backend="sim", audio=False) as robot:
         asyncio.run(main(robot))

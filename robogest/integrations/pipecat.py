@@ -9,8 +9,8 @@ What it does with the frames it sees (every frame is passed on unchanged, in ord
 * the first non-silent ``TTSAudioRawFrame`` of a bot turn opens a :meth:`Robot.stream` at the frame's sample
   rate; that turn's audio frames are fed to it (multi-channel audio is mixed down for the robot only);
 * word-timestamp ``TTSTextFrame`` s (``text_type == "word"``, with a ``pts``) become the stream's word timings:
-  a word's start is its ``pts`` minus the clock time of the turn's first audio frame, its end the next word's
-  start (the last word ends when the turn does);
+  a word's start is its ``pts`` minus the clock time of the turn's first audio frame; its end is estimated from
+  its length (the frames carry no end); each goes with the next audio frame;
 * ``TTSStoppedFrame``, ``BotStoppedSpeakingFrame`` or ``EndFrame`` (whichever comes first) closes the turn's
   stream: the motion plays out and ends at rest;
 * ``InterruptionFrame`` and ``CancelFrame`` call :meth:`Robot.interrupt` while a turn's motion is playing (the
@@ -31,7 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from robogest.errors import MissingDependencyError
+from robogest.errors import InputError, MissingDependencyError
 
 try:
     from pipecat.frames.frames import (
@@ -56,8 +56,10 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("robogest.integrations.pipecat")
 
-#: A word's end when no later word bounds it (seconds after its start).
-_LAST_WORD_S = 0.4
+
+def _word_s(text: str) -> float:
+    """A word's length, estimated (Pipecat's word frames carry only the start): 65 ms a letter, 0.15-0.6 s."""
+    return min(0.6, max(0.15, 0.065 * sum(c.isalnum() for c in text)))
 
 
 @dataclass
@@ -106,8 +108,7 @@ class RobotGestureProcessor(FrameProcessor):
         self._gen = 0  # bumped by every interrupt: the worker drops what was queued for an older generation
         self._turn: Turn | None = None  # the open turn (event-loop side)
         self._t0_ns = 0  # pipeline clock at the turn's first audio frame (word pts are on that clock)
-        self._word: tuple[str, float] | None = None  # the last word, waiting for the next one to bound its end
-        self._words: list[tuple[str, float, float]] = []  # bounded words for the next feed
+        self._words: list[tuple[str, float, float]] = []  # words for the next feed
         self._last_word_s = 0.0
         self._stream: Any = None  # the open StreamUtterance (worker side)
         self._stream_turn: Turn | None = None  # the turn it belongs to
@@ -134,7 +135,7 @@ class RobotGestureProcessor(FrameProcessor):
             turn = self._turn = Turn(time.monotonic(), int(frame.sample_rate))
             self.turns.append(turn)
             self._t0_ns = self.get_clock().get_time()
-            self._word, self._words, self._last_word_s = None, [], 0.0
+            self._words, self._last_word_s = [], 0.0
             self._submit(self._w_open, turn)
         if frame.sample_rate != turn.sample_rate:
             log.warning("pipecat: audio at %d Hz in a turn that began at %d Hz: not fed to the robot",
@@ -145,32 +146,25 @@ class RobotGestureProcessor(FrameProcessor):
         self._submit(self._w_feed, turn, frame.audio, int(frame.num_channels), words)
 
     def _on_text(self, frame: TTSTextFrame) -> None:
-        """A word with a timestamp: it bounds the previous word's end and waits for the next one."""
+        """A word with a timestamp goes with the next audio frame, at once: the planner expects a beat on its
+        stressed syllable, and the earlier it knows the word, the more warning the robot has."""
         if self._turn is None or frame.pts is None or str(frame.text_type) != "word" or not frame.text.strip():
             return
+        text = frame.text.strip()
         start_s = max(self._last_word_s, (frame.pts - self._t0_ns) / 1e9, 0.0)
-        self._flush_word(start_s)
-        self._word, self._last_word_s = (frame.text.strip(), start_s), start_s
-
-    def _flush_word(self, next_start_s: float | None) -> None:
-        if self._word is None:
-            return
-        text, start_s = self._word
-        end_s = start_s + _LAST_WORD_S if next_start_s is None else min(next_start_s, start_s + 2 * _LAST_WORD_S)
-        self._words.append((text, start_s, max(end_s, start_s + 0.05)))
-        self._word = None
+        self._words.append((text, start_s, start_s + _word_s(text)))
+        self._last_word_s = start_s
 
     def _end_turn(self) -> None:
         turn = self._turn
         if turn is None:
             return
-        self._flush_word(None)
         words, self._words, self._turn = self._words, [], None
         self._submit(self._w_close, turn, words)
 
     def _interrupt(self) -> None:
         self._gen += 1
-        self._turn, self._word, self._words = None, None, []
+        self._turn, self._words = None, []
         self._submit(self._w_interrupt)
 
     def _submit(self, fn: Any, *args: Any) -> None:
@@ -190,8 +184,11 @@ class RobotGestureProcessor(FrameProcessor):
             return  # queued before an interrupt: that turn is over
         try:
             fn(*args)
-        except Exception as e:  # the voice agent keeps talking; the robot's part of the turn is dropped
-            self._stream = None
+        except Exception as e:  # the voice agent keeps talking; the robot's part of the turn ends here
+            st, self._stream = self._stream, None
+            if st is not None:
+                with contextlib.suppress(Exception):
+                    st.close()  # what was planned plays out to rest
             if str(e) != str(self.last_error):
                 log.warning("pipecat: robot call %s failed: %s", fn.__name__, e)
             self.last_error = e
@@ -206,14 +203,14 @@ class RobotGestureProcessor(FrameProcessor):
         st = self._stream
         if st is None or self._stream_turn is not turn:
             return
-        st.feed(_mono_int16(audio, channels), words=words or None)
+        st.feed(_mono_int16(audio, channels), words=_usable(words) or None)
 
     def _w_close(self, turn: Turn, words: list) -> None:
         st = self._stream
         if st is None or self._stream_turn is not turn:
             return
         self._stream = None
-        if words:
+        if words := _usable(words):
             st.feed(b"", words=words)
         st.close()
 
@@ -222,6 +219,18 @@ class RobotGestureProcessor(FrameProcessor):
         moving = self._moving
         if moving is not None and not moving.done:
             self.robot.interrupt(wait=False)
+
+
+def _usable(words: list[tuple[str, float, float]]) -> list[tuple[str, float, float]]:
+    """The words the robot's stream takes (a token with no letters or digits, e.g. a dash, is left out)."""
+    from robogest.speech.stream import parse_word
+
+    out = []
+    for w in words:
+        with contextlib.suppress(InputError):
+            parse_word(w)
+            out.append(w)
+    return out
 
 
 def _mono_int16(audio: bytes, channels: int) -> Any:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import importlib
+import os
 import subprocess
 import sys
 import time
@@ -125,8 +126,46 @@ def test_a_missing_pipecat_is_refused_with_the_install_line(monkeypatch):
 @pytest.mark.slow
 def test_the_local_example_runs():
     pytest.importorskip("pipecat")
-    env = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"}
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
     r = subprocess.run([sys.executable, str(ROOT / "examples" / "pipecat_local.py")], env=env, cwd=ROOT,
                        capture_output=True, text=True, timeout=600)  # fmt: skip
     assert r.returncode == 0, r.stderr[-2000:]
     assert "turn 1:" in r.stdout and "interrupted" in r.stdout, r.stdout
+
+
+class _FakeRobot:
+    def __init__(self) -> None:
+        self.interrupts = 0
+
+    def interrupt(self, wait: bool = True) -> dict:
+        self.interrupts += 1
+        return {}
+
+
+class _Handle:
+    def __init__(self, done: bool) -> None:
+        self.done = done
+
+
+def test_an_interruption_moves_the_robot_only_while_a_turn_plays():
+    pytest.importorskip("pipecat")
+    from robogest.integrations.pipecat import RobotGestureProcessor
+
+    robot = _FakeRobot()
+    proc = RobotGestureProcessor(robot)
+    proc._w_interrupt()  # nothing said yet: the idle robot is left alone (a user speaking first)
+    proc._moving = _Handle(done=True)
+    proc._w_interrupt()  # the last turn has finished
+    assert robot.interrupts == 0
+    proc._moving = _Handle(done=False)
+    proc._w_interrupt()
+    assert robot.interrupts == 1
+
+
+def test_words_the_stream_would_refuse_are_left_out():
+    pytest.importorskip("pipecat")
+    from robogest.integrations.pipecat import _usable, _word_s
+
+    words = [("—", 0.0, 0.2), ("Hello,", 0.1, 0.1 + _word_s("Hello,")), ("...", 0.5, 0.6), ("there", 0.6, 0.9)]
+    assert [w[0] for w in _usable(words)] == ["Hello,", "there"]
+    assert 0.15 <= _word_s("a") < _word_s("hello") < _word_s("extraordinarily") <= 0.6
