@@ -17,7 +17,6 @@ import time
 from loguru import logger  # Pipecat's logger
 
 from robogest import Robot
-from robogest.integrations.pipecat_scripted import LocalPipeline
 
 
 def report(i: int, turn) -> None:
@@ -29,6 +28,8 @@ def report(i: int, turn) -> None:
 
 
 async def main(robot: Robot) -> None:
+    from robogest.integrations.pipecat_scripted import LocalPipeline  # after the logger is set (Pipecat logs)
+
     async with LocalPipeline(robot) as p:
         await p.say("Hello! I am a robot, and I move my arms while I talk.")
         while not p.gestures.turns[-1].handle.done:  # the motion plays a little behind the audio
@@ -44,7 +45,8 @@ async def main(robot: Robot) -> None:
         while not p.gestures.turns[-1].handle.done:
             await asyncio.sleep(0.01)
         report(2, p.gestures.turns[-1])
-        print(f"interruption frame -> turn stopped in {(time.monotonic() - t0) * 1000:.0f} ms")
+        print(f"interruption frame -> utterance interrupted in {(time.monotonic() - t0) * 1000:.0f} ms (the robot"
+              f" glides to rest within stop_within_s = {robot.stop_within_s} s)")  # fmt: skip
     print(f"frames through the processor: {len(p.output.frames)}; robot errors: {p.gestures.last_error}")
 
 
