@@ -30,6 +30,7 @@ from robogest.eval.features import (
 from robogest.eval.kinematics import (
     hellinger_distance,
     maje_mad,
+    maje_mad_s2ag_protocol,
     motion_statistics,
     silence_behaviour,
     speed_histogram,
@@ -58,6 +59,7 @@ __all__ = [
     "lexeme_entropy",
     "limit_violations",
     "maje_mad",
+    "maje_mad_s2ag_protocol",
     "motion_beats",
     "motion_statistics",
     "pmb",

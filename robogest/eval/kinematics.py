@@ -281,6 +281,60 @@ def maje_mad(pred_pos: np.ndarray, gt_pos: np.ndarray, fps: float) -> dict:
     }  # fmt: skip
 
 
+#: S2AG's evaluation windows (its ``config/multimodal_context_v2.yml``): 34 poses at 15 fps, the first 4 the seed.
+S2AG_FPS, S2AG_WINDOW, S2AG_SEED_FRAMES = 15.0, 34, 4
+#: TED Gesture's anchor: its poses are joint positions relative to the spine, which is fixed at the origin.
+S2AG_ANCHOR = "spine"
+
+
+def maje_mad_s2ag_protocol(
+    pred_pos: np.ndarray, gt_pos: np.ndarray, fps: float, joint_names: Sequence[str]
+) -> dict | None:
+    """MAJE and MAD exactly as S2AG's evaluation code computes them, for comparison with its tables.
+
+    The authors' ``push_samples`` works per 34-pose window at 15 fps on the 10 TED joints (positions relative to
+    the spine): MAJE leaves out each window's 4 seed poses (given, not generated), MAD takes the second
+    differences inside each window over all its poses. Here both motions are resampled to 15 fps (linear), cut
+    into consecutive windows (a partial last window is dropped) and scored the same way; :func:`maje_mad` keeps
+    the whole-take figure on all joints beside it.
+
+    Parameters
+    ----------
+    pred_pos, gt_pos : ndarray [shape=(T, J, 3)], metres
+    fps : float
+    joint_names : sequence of str, length J
+
+    Returns
+    -------
+    dict or None
+        ``maje_mm``, ``mad_mm_per_frame2`` (at 15 fps), ``joints``, ``n_windows``; None when the skeleton lacks a
+        TED joint or the motions are shorter than one window.
+    """
+    joints = PAPER_JOINT_SETS["s2ag"]
+    names = list(joint_names)
+    if any(j not in names for j in joints):
+        return None
+    p, g, _ = truncate_pair(_check_pos(pred_pos, fps, 3, "pred"), _check_pos(gt_pos, fps, 3, "gt"))
+    t_src = np.arange(len(p)) / fps
+    t = np.arange(0.0, t_src[-1] + 1e-9, 1.0 / S2AG_FPS) if len(p) else np.zeros(0)
+    n_win = len(t) // S2AG_WINDOW
+    if n_win == 0:
+        return None
+    idx = [names.index(j) for j in joints]
+    anchor = names.index(S2AG_ANCHOR)
+
+    def windows(pos: np.ndarray) -> np.ndarray:  # (W, 34, K, 3), relative to the spine, at 15 fps
+        rel = (pos[:, idx] - pos[:, anchor][:, None]).reshape(len(pos), -1)  # (T, K*3)
+        at = np.stack([np.interp(t, t_src, rel[:, c]) for c in range(rel.shape[1])], axis=1)
+        return at[: n_win * S2AG_WINDOW].reshape(n_win, S2AG_WINDOW, len(idx), 3)
+
+    wp, wg = windows(p), windows(g)
+    maje = np.abs(wp[:, S2AG_SEED_FRAMES:] - wg[:, S2AG_SEED_FRAMES:]).mean() * M_TO_MM
+    mad = np.abs(np.diff(wp, n=2, axis=1) - np.diff(wg, n=2, axis=1)).mean() * M_TO_MM
+    return {"maje_mm": float(maje), "mad_mm_per_frame2": float(mad), "fps": S2AG_FPS, "joints": list(joints),
+            "n_windows": int(n_win)}  # fmt: skip
+
+
 def spans_to_mask(spans: Sequence[tuple[float, float]], n_frames: int, fps: float) -> np.ndarray:
     """Boolean frame mask ``(T,)``: frame ``t`` (at ``t / fps`` s) lies inside some ``[start, end)`` span."""
     t = np.arange(n_frames) / fps

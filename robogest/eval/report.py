@@ -18,6 +18,7 @@ from robogest.eval.beats import beat_sync_report, stroke_sync
 from robogest.eval.features import feature_distances, lexeme_entropy
 from robogest.eval.kinematics import (
     maje_mad,
+    maje_mad_s2ag_protocol,
     motion_statistics,
     paper_statistics,
     silence_behaviour,
@@ -78,7 +79,8 @@ def evaluate_motion(
     dict
         ``pred`` (acceleration/jerk over all joints, root moving), ``paper_joint_sets`` (the same on each
         paper's joint set, root fixed: :data:`robogest.eval.kinematics.PAPER_JOINT_SETS`), and where the inputs
-        allow: ``gt``, ``ratio_to_gt``, ``wrist_speed``, ``maje_mad``, ``features`` (+ ``features_noise_floor``),
+        allow: ``gt``, ``ratio_to_gt``, ``wrist_speed``, ``maje_mad`` (all joints, whole take), ``maje_mad_s2ag``
+        (S2AG's protocol: TED joints, 15 fps windows, seed poses excluded), ``features`` (+ ``features_noise_floor``),
         ``beat_sync`` (+ ``gt_beat_sync``), ``silence``.
     """
     wr = wrist_indices(joint_names)
@@ -91,6 +93,9 @@ def evaluate_motion(
         if wr:
             out["wrist_speed"] = wrist_speed_comparison(pred_pos, gt_pos, fps, wr)
         out["maje_mad"] = maje_mad(pred_pos, gt_pos, fps)
+        s2ag = maje_mad_s2ag_protocol(pred_pos, gt_pos, fps, joint_names)
+        if s2ag is not None:
+            out["maje_mad_s2ag"] = s2ag
         out["features"] = feature_distances(pred_pos, gt_pos, fps)
         out["features_noise_floor"] = real_vs_real(gt_pos, fps)
     if audio_beats_s is not None:
@@ -204,6 +209,12 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
             note = f" ({m['dropped_frames']} frames truncated)" if m["dropped_frames"] else ""
             mad = (f"MAD (mm/frame² at {m['fps']:g} fps)", _fmt(m["mad_mm_per_frame2"]))
             rows += [("MAJE (mm)", _fmt(m["maje_mm"]) + note), mad]
+        if "maje_mad_s2ag" in result:
+            m = result["maje_mad_s2ag"]
+            rows += [
+                (f"MAJE, S2AG protocol (mm, {m['n_windows']} windows)", _fmt(m["maje_mm"])),
+                ("MAD, S2AG protocol (mm/frame² at 15 fps)", _fmt(m["mad_mm_per_frame2"])),
+            ]
         if "features" in result:
             f = result["features"]
             floor = result.get("features_noise_floor", {})

@@ -87,6 +87,30 @@ def test_mad_is_per_frame_squared_on_coordinates():
         assert maje_mad(pred, gt, fps)["mad_mm_per_frame2"] == pytest.approx(6.0 / 3, rel=1e-6)
 
 
+def test_s2ag_protocol_excludes_each_windows_seed_poses_and_uses_the_ted_joints():
+    """S2AG's code scores 34-pose windows at 15 fps on the 10 TED joints relative to the spine, leaving the 4 seed
+    poses of each window out of MAJE; an error only in seed poses, or only in a non-TED joint, scores zero."""
+    from robogest.eval.kinematics import S2AG_SEED_FRAMES, S2AG_WINDOW, maje_mad_s2ag_protocol
+    from robogest.motion.skeleton import CANONICAL
+
+    n = 3 * S2AG_WINDOW  # three windows at 15 fps
+    rng = np.random.default_rng(0)
+    gt = rng.normal(0, 0.1, (n, CANONICAL.n_joints, 3))
+    names = CANONICAL.names
+    pred = gt.copy()
+    seed = (np.arange(n) % S2AG_WINDOW) < S2AG_SEED_FRAMES
+    pred[np.ix_(seed, [names.index("l_wrist")])] += 0.05  # wrong only where windows are seeded with the truth
+    pred[:, names.index("l_collar")] += 0.2  # not a TED joint
+    r = maje_mad_s2ag_protocol(pred, gt, 15.0, names)
+    assert r["n_windows"] == 3 and len(r["joints"]) == 10
+    assert r["maje_mm"] == pytest.approx(0.0, abs=1e-9)
+    assert r["mad_mm_per_frame2"] > 0  # MAD keeps every pose of the window
+    pred2 = gt.copy()
+    pred2[:, names.index("r_wrist"), 0] += 0.03  # 30 mm on x of one TED joint out of 10 (x, y, z)
+    assert maje_mad_s2ag_protocol(pred2, gt, 15.0, names)["maje_mm"] == pytest.approx(30.0 / 30)
+    assert maje_mad_s2ag_protocol(gt[:20], gt[:20], 15.0, names) is None  # shorter than one window
+
+
 def test_maje_rejects_different_skeletons():
     with pytest.raises(InputError):
         maje_mad(np.zeros((10, 3, 3)), np.zeros((10, 4, 3)), FPS)
