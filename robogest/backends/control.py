@@ -41,6 +41,7 @@ import numpy as np
 
 from robogest.backends.base import Backend, check_goal
 from robogest.errors import BackendError, RobogestError
+from robogest.robot.config import LIMIT_MARGIN_RAD
 from robogest.safety.online import LOOKAHEAD_S, OnlineLimiter
 from robogest.trajectory.types import Trajectory, check_matches
 
@@ -272,7 +273,7 @@ class ControlLoop:
         threaded: bool | None = None,
         read_back: bool = True,
         time_scale: float = 1.0,
-        margin_rad: float = 0.02,
+        margin_rad: float = LIMIT_MARGIN_RAD,
         lookahead_s: float = LOOKAHEAD_S,
         stop_within_s: float | None = None,
     ) -> None:

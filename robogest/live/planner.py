@@ -38,8 +38,8 @@ import numpy as np
 
 from robogest.generators.base import Generator
 from robogest.motion.human_motion import HumanMotion
-from robogest.robot.config import RobotConfig
-from robogest.safety.limits import JointLimits, SafetyConfig
+from robogest.robot.config import LIMIT_MARGIN_RAD, RobotConfig
+from robogest.safety.limits import JointLimits
 from robogest.speech.stream import SpeechStream
 from robogest.trajectory import Trajectory
 
@@ -232,8 +232,8 @@ class StreamingPlanner:
         self.feed = TrajectoryFeed(robot, fps)
         self.rest = np.asarray(robot.rest_q_rad, float)
         self.limits = JointLimits.from_robot(robot)
-        self.lo = robot.q_min_rad + SafetyConfig.margin_rad  # the batch safety layer's band
-        self.hi = robot.q_max_rad - SafetyConfig.margin_rad
+        self.lo = robot.q_min_rad + LIMIT_MARGIN_RAD  # the batch safety layer's band
+        self.hi = robot.q_max_rad - LIMIT_MARGIN_RAD
         self._human = np.empty((0, 0, 4))  # (K, B, 4) human rotations behind the feed's frames: retarget changes only
         self.start_s = 0.0  #: where the current generation window starts, seconds
         self.n_plans = 0

@@ -25,6 +25,9 @@ HUMAN_POINTS = (
     "r_collar", "r_shoulder", "r_elbow", "r_wrist", "r_hand",
 )  # fmt: skip
 
+#: The band every safety stage keeps inside a joint's hard limits (batch tracker, streaming planner, the control
+#: loop's online limiter), and the room a rest pose needs from them: the one margin, radians.
+LIMIT_MARGIN_RAD = 0.02
 #: Default jerk limit rule: the acceleration limit is reached from zero in this many seconds.
 JERK_RISE_S = 0.05
 #: Limits a servo joint can plausibly have (the fastest hobby servos turn at about 10 rad/s). Outside them a value

@@ -39,7 +39,7 @@ import yaml
 
 from robogest.errors import ConfigError, InputError
 from robogest.fileio import atomic_path, load_yaml, read_text_capped
-from robogest.robot.config import RobotConfig, load_robot_config
+from robogest.robot.config import LIMIT_MARGIN_RAD, RobotConfig, load_robot_config
 
 _FIELDS = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
 
@@ -223,7 +223,7 @@ def import_lerobot_calibration(
         zero = (mid - centre) * rad
         ends = sorted(direction * (t - mid) * rad / servo.gear_ratio for t in (c.range_min, c.range_max))
         lower, upper = max(ends[0], j.lower_rad), min(ends[1], j.upper_rad)
-        if not lower + 0.02 <= j.rest_rad <= upper - 0.02:
+        if not lower + LIMIT_MARGIN_RAD <= j.rest_rad <= upper - LIMIT_MARGIN_RAD:
             raise ConfigError(
                 f"{calib_path}: motor {motor!r}: the calibrated range [{ends[0]:.3f}, {ends[1]:.3f}] rad leaves no "
                 f"room around joint {j.name!r}'s rest pose {j.rest_rad} rad; recalibrate with the arm in"

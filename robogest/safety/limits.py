@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from robogest.errors import ConfigError, InputError
+from robogest.robot.config import LIMIT_MARGIN_RAD
 
 if TYPE_CHECKING:
     from robogest.robot.config import RobotConfig
@@ -163,7 +164,7 @@ class SafetyConfig:
         stream must.
     """
 
-    margin_rad: float = 0.02
+    margin_rad: float = LIMIT_MARGIN_RAD
     smooth_kernel: int = 5
     smooth_sigma: float | None = None
     rest_after_s: float = 1.0

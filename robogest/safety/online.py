@@ -42,6 +42,7 @@ import numpy as np
 import ruckig
 
 from robogest.errors import InputError
+from robogest.robot.config import LIMIT_MARGIN_RAD
 
 #: Limits given to ruckig are shrunk by this factor so rounding never shows as a violation.
 _SHRINK = 1.0 - 1e-6
@@ -105,7 +106,7 @@ class OnlineLimiter:
         q0_rad: np.ndarray,
         *,
         rest_q_rad: np.ndarray | None = None,
-        margin_rad: float = 0.02,
+        margin_rad: float = LIMIT_MARGIN_RAD,
         stop_within_s: float | None = None,
         held_mask: np.ndarray | None = None,
     ) -> None:
@@ -154,7 +155,13 @@ class OnlineLimiter:
 
     @classmethod
     def for_robot(
-        cls, robot, period_s: float, q0_rad: np.ndarray, *, margin_rad: float = 0.02, stop_within_s: float | None = None
+        cls,
+        robot,
+        period_s: float,
+        q0_rad: np.ndarray,
+        *,
+        margin_rad: float = LIMIT_MARGIN_RAD,
+        stop_within_s: float | None = None,
     ) -> OnlineLimiter:
         """The limiter for a :class:`~robogest.robot.config.RobotConfig` (its limits, jerk limits and rest)."""
         return cls(
