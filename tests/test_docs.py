@@ -187,6 +187,23 @@ def test_commands_are_real(page: Path, parser: argparse.ArgumentParser) -> None:
     assert problems == []
 
 
+def test_readme_is_short_and_links_every_page() -> None:
+    """The README stays an overview (details go to docs/) and its reader can reach every docs page."""
+    text = PAGES[0].read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 250, "README.md: over 250 lines; move details to a page in docs/"
+    linked = {Path(t.partition("#")[0]).name for t in _LINK.findall(text) if t.startswith("docs/")}
+    unlinked = [p.name for p in PAGES[1:] if p.name not in linked]
+    assert unlinked == [], "README.md: add these pages to 'Where to read next'"
+
+
+@pytest.mark.parametrize("page", PAGES[1:], ids=lambda p: p.name)
+def test_docs_page_links_back_to_readme(page: Path) -> None:
+    """Each page opens with its title, then a one-line summary; the page links back to the README."""
+    text = page.read_text(encoding="utf-8")
+    assert text.startswith("# "), f"{page.name}: start with a '# Title' line, then a one-line summary"
+    assert "](../README.md)" in text, f"{page.name}: add [Back to the README](../README.md) to its summary line"
+
+
 def test_pages_show_commands(parser: argparse.ArgumentParser) -> None:
     """The checker finds the commands (it would pass vacuously if it found none)."""
     total = sum(command_problems(p.read_text(encoding="utf-8"), parser, make_targets())[1] for p in PAGES)
