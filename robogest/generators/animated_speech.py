@@ -134,7 +134,7 @@ def check_script(text: str, units: Collection[str] | None = None, lenient: bool 
         why = _problem(f, text, units, started)
         raw = text[f.start : f.end].strip()
         if why and not lenient:
-            raise InputError(f"tag {raw!r}: {why}; or pass --lenient (say(..., lenient=True)) to drop such tags")
+            raise InputError(f"tag '{raw}': {why}; or pass --lenient (say(..., lenient=True)) to drop such tags")
         if why:
             dropped.append((f.start, f.end))
         elif f.kind == "start":
