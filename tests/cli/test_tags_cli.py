@@ -72,7 +72,7 @@ def test_pause_tag_is_a_silent_period_the_robot_rests_in(tmp_path, monkeypatch):
     assert runs and (runs[0][1] - runs[0][0]) / traj.fps == pytest.approx(0.8, abs=0.1)
     off_rest = np.abs(traj.q_rad - traj.rest_q_rad).max(axis=1)
     i, j = runs[0]
-    assert off_rest[(i + j) // 2] < 0.5 * off_rest[: i].max()  # heading for rest in the pause
+    assert off_rest[(i + j) // 2] < 0.5 * off_rest[:i].max()  # heading for rest in the pause
 
 
 @pytest.mark.slow
