@@ -131,3 +131,44 @@ def test_rate_tag_speaks_faster():
     fast = load_speech_input(text="\\rspd=200\\ One two three four five six seven eight.")
     slow = load_speech_input(text="One two three four five six seven eight.")
     assert fast.words[-1].end_s < 0.7 * slow.words[-1].end_s
+
+
+@pytest.mark.slow
+def test_robot_say_refuses_or_drops_unknown_tags_and_never_speaks_them(monkeypatch, caplog):
+    import logging
+
+    from robogest.errors import InputError
+    from robogest.live import Robot
+
+    said = _spoken(monkeypatch)
+    with Robot("humanoid_xl430", backend="sim", idle=False, time_scale=4.0, warm_up=False) as robot:
+        with pytest.raises(InputError, match=r"tag '\^jump\(away\)': unknown tag"):
+            robot.say("The exit is ^jump(away) behind the stairs.")
+        assert said == []
+        with caplog.at_level(logging.WARNING, logger="robogest"):
+            h = robot.say("The exit is ^jump(away) behind ^start(point_away) the stairs.", lenient=True)
+    assert said == ["The exit is behind the stairs."] and h.trajectory is not None
+    assert [r.getMessage() for r in caplog.records if "dropped" in r.getMessage()] == [
+        "dropped 1 tag(s) robogest cannot use (not spoken): ^jump(away)"
+    ]
+
+
+@pytest.mark.slow
+def test_serve_say_takes_lenient():
+    import json
+
+    from tests.live.test_serve import _client, _recv, _start
+
+    proc, url = _start("--time-scale", "4")
+    try:
+        with _client(url) as ws:
+            _recv(ws, "hello")
+            ws.send(json.dumps({"type": "say", "text": "Go ^jump(away) now."}))
+            assert "tag '^jump(away)': unknown tag" in _recv(ws, "error")["message"]
+            ws.send(json.dumps({"type": "say", "text": "Go ^jump(away) now.", "lenient": "yes"}))
+            assert '"lenient" must be true or false' in _recv(ws, "error")["message"]
+            ws.send(json.dumps({"type": "say", "text": "Go ^jump(away) now.", "lenient": True}))
+            _recv(ws, "accepted")
+    finally:
+        proc.terminate()
+        proc.wait(60)
