@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from robogest.cli.main import main
+from robogest.errors import InputError
 from robogest.pipeline import load_speech_input
 from robogest.speech import tts
 from robogest.trajectory import Trajectory
@@ -137,7 +138,6 @@ def test_rate_tag_speaks_faster():
 def test_robot_say_refuses_or_drops_unknown_tags_and_never_speaks_them(monkeypatch, caplog):
     import logging
 
-    from robogest.errors import InputError
     from robogest.live import Robot
 
     said = _spoken(monkeypatch)
@@ -172,3 +172,20 @@ def test_serve_say_takes_lenient():
     finally:
         proc.terminate()
         proc.wait(60)
+
+
+def test_a_gesture_file_unit_takes_a_naoqi_name(tmp_path):
+    from robogest.generators import lexicon as lx
+    from robogest.generators.rhythm import RhythmGenerator
+
+    (tmp_path / "naoqi.yaml").write_text(
+        "units:\n  Hey:\n    hand: right\n    size: large\n    kind: semantic\n"
+        "    prep: {r_flex: 0.9, r_elbow: 0.6}\n    stroke: {r_flex: 1.3, r_elbow: 0.9, r_abd: 0.3}\n"
+    )
+    rep = lx.Repertoire(lx.load_units([tmp_path, *lx.search_path()]))
+    text = "Hello! ^start(animations/Stand/Gestures/Hey_1) Nice to meet you."
+    speech = load_speech_input(text=text, units=rep.units)
+    plan = RhythmGenerator(repertoire=rep).plan(speech)
+    assert [(e.unit, e.source) for e in plan if e.source.startswith("tag:")] == [("Hey", "tag:nice")]
+    with pytest.raises(InputError, match=r"\^start\(animations/Stand/Gestures/Hey_1\): unknown unit"):
+        RhythmGenerator().plan(load_speech_input(text=text))  # the built-in units have no wave
