@@ -14,6 +14,7 @@ import logging
 import re
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 from robogest.errors import InputError
 from robogest.generators.tags import MODES, PIN_KINDS, Found, _tokens, align_words, mode_spans, scan, word_index_at
@@ -101,7 +102,7 @@ def _problem(f: Found, text: str, units: Collection[str] | None, started: set[st
                 f"unknown unit; known units: {', '.join(sorted(units))}; NAOqi names and your own: "
                 "docs/animated-speech.md"
             )
-        if f.kind in PIN_KINDS and word_index_at(text, f.start) >= len(_tokens(text and _strip(text))):
+        if f.kind in PIN_KINDS and word_index_at(text, f.start) >= len(_tokens(_strip(text))):
             return "it has no word after it; put it before the word it goes with"
         if f.kind in ("wait", "stop") and f.arg not in started:
             return f"no ^start({f.arg}) before it; ^run({f.arg}) plays a unit in a pause of its own"
@@ -151,7 +152,7 @@ def check_script(text: str, units: Collection[str] | None = None, lenient: bool 
 
 
 def parse_script(
-    text: str, units: Mapping[str, object] | None = None, lenient: bool = False, words_per_minute: int = 160
+    text: str, units: Mapping[str, Any] | None = None, lenient: bool = False, words_per_minute: int = 160
 ) -> Script:
     """Check ``text`` (:func:`check_script`) and cut it into what eSpeak speaks: a new segment at each pause
     (``\\pau``, ``^run``, ``^wait``) or rate change (``\\rspd``, ``\\rst``). ``units``: name -> unit (with
@@ -206,7 +207,7 @@ def synthesize_script(
     voice: str = "en-us",
     words_per_minute: int = 160,
     lenient: bool = False,
-    units: Mapping[str, object] | None = None,
+    units: Mapping[str, Any] | None = None,
 ) -> Speech:
     """Speak an annotated ``text`` with eSpeak NG; :attr:`Speech.text` keeps its tags for the generator, and its
     silent periods are those of the audio, plus each ``\\pau`` pause and ``^mode(disabled)`` stretch, minus the
