@@ -17,7 +17,18 @@ from dataclasses import dataclass
 from typing import Any
 
 from robogest.errors import InputError
-from robogest.generators.tags import MODES, PIN_KINDS, Found, _tokens, align_words, mode_spans, scan, word_index_at
+from robogest.generators.tags import (
+    MODES,
+    PIN_KINDS,
+    Found,
+    _tokens,
+    align_words,
+    mode_spans,
+    parse_tags,
+    scan,
+    strip_tags,
+    word_index_at,
+)
 from robogest.speech.core import TextSegment
 from robogest.speech.types import Speech
 
@@ -102,7 +113,7 @@ def _problem(f: Found, text: str, units: Collection[str] | None, started: set[st
                 f"unknown unit; known units: {', '.join(sorted(units))}; NAOqi names and your own: "
                 "docs/animated-speech.md"
             )
-        if f.kind in PIN_KINDS and word_index_at(text, f.start) >= len(_tokens(_strip(text))):
+        if f.kind in PIN_KINDS and word_index_at(text, f.start) >= len(_tokens(strip_tags(text))):
             return "it has no word after it; put it before the word it goes with"
         if f.kind in ("wait", "stop") and f.arg not in started:
             return f"no ^start({f.arg}) before it; ^run({f.arg}) plays a unit in a pause of its own"
@@ -117,12 +128,6 @@ def _problem(f: Found, text: str, units: Collection[str] | None, started: set[st
     if f.kind == "rst":
         return "" if not f.arg else "it takes no value: \\rst\\"
     return f"unknown tag; robogest reads {_KNOWN} (docs/animated-speech.md); write ^^ or \\\\ for the character"
-
-
-def _strip(text: str) -> str:
-    from robogest.generators.tags import strip_tags
-
-    return strip_tags(text)
 
 
 def check_script(text: str, units: Collection[str] | None = None, lenient: bool = False) -> tuple[str, list[str]]:
@@ -170,7 +175,7 @@ def parse_script(
             anchors[f.arg] = (len(segs), _word_char(kept, start, f.start))
         if f.kind not in _BREAKS:
             continue
-        piece = _strip(kept[start : f.start])
+        piece = strip_tags(kept[start : f.start])
         if piece:
             segs.append(TextSegment(piece, rate, pause_ms / 1000, resume))
             kinds.append(kind)
@@ -188,7 +193,7 @@ def parse_script(
         elif f.kind == "wait" and unit is not None and f.arg in anchors:
             seg, char = anchors[f.arg]
             resume, kind = (seg, char, unit.stroke_s / 2 + unit.hold_s + WAIT_MARGIN_S), "hold"
-    piece = _strip(kept[start:])
+    piece = strip_tags(kept[start:])
     if piece or pause_ms or not segs:
         segs.append(TextSegment(piece, rate, pause_ms / 1000, resume))
         kinds.append(kind)
@@ -198,7 +203,7 @@ def parse_script(
 def _word_char(text: str, seg_start: int, pos: int) -> int:
     """Character offset, in the spoken text of the segment that starts at ``seg_start``, of the first word after
     ``pos`` (the word a pin at ``pos`` goes with)."""
-    before = _strip(text[seg_start:pos])
+    before = strip_tags(text[seg_start:pos])
     return len(before) + 1 if before else 0
 
 
@@ -232,8 +237,6 @@ def synthesize_script(
 
 def _with_modes(spans: list[tuple[float, float]], text: str, speech: Speech) -> list[tuple[float, float]]:
     """``spans`` plus each ``^mode(disabled)`` stretch, less the time around gestures pinned inside it."""
-    from robogest.generators.tags import parse_tags
-
     words = speech.words
     index = align_words(text, [w.text for w in words])
     for first, end, mode in mode_spans(text):
