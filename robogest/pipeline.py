@@ -5,7 +5,8 @@ The CLI and the tests call these functions; nothing here knows about a particula
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -40,8 +41,15 @@ def load_speech_input(
     transcript: str | Path | None = None,
     voice: str = "en-us",
     words_per_minute: int = 160,
+    lenient: bool = False,
+    units: Mapping[str, object] | None = None,
 ) -> Speech:
-    """Text through eSpeak NG, or an audio file with an optional transcript."""
+    """Text through eSpeak NG, or an audio file with an optional transcript.
+
+    Text may carry tags (``^gesture``, NAOqi's ``^start``... and ``\\pau=MS\\``: docs/animated-speech.md): a bad
+    one is an InputError, or with ``lenient`` dropped with one logged warning; tags are never spoken. ``units``: the
+    generator's gesture units by name, to check the tags' names against (None: the generator checks them).
+    """
     from robogest import speech as sp
 
     if (text is None) == (audio is None):
@@ -49,13 +57,14 @@ def load_speech_input(
     if transcript is not None and audio is None:
         raise InputError("--transcript goes with --audio; with TEXT the words are already known")
     if text is not None:
-        from robogest.generators.tags import TAG, strip_tags
+        from robogest.generators.tags import ANY_TAG
 
-        if not TAG.search(text):
+        if not ANY_TAG.search(text):
             return sp.synthesize(text, voice=voice, words_per_minute=words_per_minute)
-        # Gesture tags are not spoken; Speech.text keeps them for the generator.
-        speech = sp.synthesize(strip_tags(text), voice=voice, words_per_minute=words_per_minute)
-        return replace(speech, text=text)
+        from robogest.generators.animated_speech import synthesize_script
+
+        # Tags are not spoken; Speech.text keeps them for the generator.
+        return synthesize_script(text, voice, words_per_minute, lenient=lenient, units=units)
     return sp.load_speech(audio, transcript)
 
 

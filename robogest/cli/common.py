@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -134,7 +134,8 @@ def robot_files(name_or_path: str) -> list[str]:
     return [str(robot.path), *(str(f) for f in sorted(robot.model_path.parent.glob("*.xml")))]
 
 
-def speech_from_args(args: argparse.Namespace) -> Speech:
+def speech_from_args(args: argparse.Namespace, units: Mapping[str, object] | None = None) -> Speech:
+    """The speech the arguments ask for; ``units``: the generator's gesture units, to check TEXT's tags against."""
     from robogest.errors import InputError
     from robogest.pipeline import load_speech_input
 
@@ -142,7 +143,7 @@ def speech_from_args(args: argparse.Namespace) -> Speech:
         raise InputError("--voice and --wpm are for TEXT spoken by eSpeak NG; --audio is already spoken")
     return load_speech_input(
         text=args.text, audio=args.audio, transcript=args.transcript, voice=args.voice or "en-us",
-        words_per_minute=args.wpm or 160,
+        words_per_minute=args.wpm or 160, lenient=getattr(args, "lenient", False), units=units,
     )  # fmt: skip
 
 

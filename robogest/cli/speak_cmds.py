@@ -26,6 +26,7 @@ SPEAK_EPILOG = """examples:
   robogest speak --audio talk.wav --transcript talk.TextGrid --robot humanoid_sts3215 --save out/talk.npz
   robogest speak "Hi" --backend dynamixel --port /dev/ttyUSB0
   robogest speak "Look ^gesture(point_away) over there. It is huge!" --style lively
+  robogest speak "Hello! \\pau=800\\ ^start(animations/Stand/Gestures/Explain_1) Let me explain." --lenient
 
 With --backend sim (the default) nothing moves but the MuJoCo model; with dynamixel/feetech the robot's
 bus section gives ids and models, --port/--baud override it. Every command goes through the safety layer
@@ -83,6 +84,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--seed", type=checks.seed, default=0, help="random seed, 0..2**32-1; same input + seed = same motion"
     )
     add_gesture_args(p)
+    p.add_argument("--lenient", action="store_true", help="drop tags in TEXT that robogest cannot use (one warning) "
+                   "instead of refusing them; tags are never spoken (docs/animated-speech.md)")  # fmt: skip
     _add_output_args(p)
     p.set_defaults(func=run_speak)
 
@@ -206,6 +209,16 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
         )
 
 
+def _tag_units(generator: str, opts: dict) -> dict | None:
+    """The units the rhythm generator will use, which TEXT's tags must name (None: another generator, which
+    reads no tags)."""
+    if generator != "rhythm":
+        return None
+    from robogest.generators import lexicon as lx
+
+    return (opts.get("repertoire") or lx.default_repertoire()).units
+
+
 def run_speak(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -219,7 +232,7 @@ def run_speak(args: argparse.Namespace) -> int:
     require_followable(robot)
     opts = generator_options(args)
     backend = _hardware_backend(args, robot)
-    speech = speech_from_args(args)
+    speech = speech_from_args(args, _tag_units(args.generator, opts))
     result = speak(speech, robot, args.generator, seed=args.seed, fps=args.fps, generator_options=opts)
     traj = result.trajectory
     if args.save:

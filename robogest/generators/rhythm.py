@@ -32,9 +32,10 @@ from scipy.special import ndtr
 from robogest.errors import InputError
 from robogest.generators import lexicon as lx
 from robogest.generators.acoustic import HOP_S, AcousticBeats, acoustic_beats, band_loudness_db
+from robogest.generators.animated_speech import resolve_unit
 from robogest.generators.base import Generator, register_generator
 from robogest.generators.poses import DOF, HEAD_DOFS, N_DOF, READY, REST, dofs_to_rotations
-from robogest.generators.tags import align_words, parse_tags, sentences
+from robogest.generators.tags import align_words, mode_spans, parse_tags, sentences
 from robogest.motion.human_motion import HumanMotion
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
 from robogest.speech.stress import stress_fraction
@@ -528,31 +529,37 @@ class RhythmGenerator(Generator):
 
         spoken = [w.text for w in words]
         index = align_words(speech.text, spoken) if speech.text else []
-        # 1. Tags pin a unit to the next word.
+        # 1. Tags pin a unit to the next word (^run: in the pause before it, its hold ending as the word starts).
         for tag in parse_tags(speech.text) if speech.text else []:
-            if tag.name not in rep.units:
+            name = resolve_unit(tag.name, rep.units)
+            if name is None:
                 known = ", ".join(sorted(rep.units))
-                raise InputError(f"gesture tag ^gesture({tag.name}): unknown unit; known units: {known}")
+                raise InputError(f"gesture tag ^{tag.kind}({tag.name}): unknown unit; known units: {known}")
             k = index[tag.word_index] if tag.word_index < len(index) else None
             if k is None:
                 continue
-            bi = beat_in(k, tag.name)
+            u = rep.units[name]
+            bi = beat_in(k, name) if tag.kind != "run" else None
             t = float(beats[bi]) if bi is not None else words[k].start_s
+            t -= (u.stroke_s / 2 + u.hold_s) if tag.kind == "run" else 0.0
             p = float(prom[bi]) if bi is not None else 0.6
             if bi is not None:
-                taken.add((bi, rep.units[tag.name].channel))
-            events.append(GestureEvent(t, tag.name, amp * (0.6 + 0.4 * p), f"tag:{words[k].text}"))
-        # 2. Semantic units by priority within each sentence, never off an acoustic beat.
+                taken.add((bi, u.channel))
+            events.append(GestureEvent(t, name, amp * (0.6 + 0.4 * p), f"tag:{words[k].text}"))
+        # 2. Semantic units by priority within each sentence, never off an acoustic beat; none where a ^mode tag
+        # says random (beats without meaning) or disabled.
         keys = rep.keywords()
+        modes = mode_spans(speech.text) if speech.text else []
+        plain = {k for a, b, _ in modes for k in index[a:b] if k is not None}
         for first, last in self._sentence_spans(speech, index):
             cands: list[tuple[int, int, str, str]] = []  # (-priority, word, unit, trigger)
-            for k in range(first, last + 1):
+            for k in (k for k in range(first, last + 1) if k not in plain):
                 key = spoken[k]
                 pair = f"{key} {spoken[k + 1]}" if k + 1 <= last else ""
                 for trig in (pair, key):
                     for unit in keys.get(trig, []) if trig else []:
                         cands.append((-rep.units[unit].priority, k, unit, trig))
-            if self._is_question(speech, index, last):
+            if self._is_question(speech, index, last) and last not in plain:
                 cands += [(-rep.units[u].priority, last, u, "?") for u in keys.get("?", [])]
             arm_picked = False
             for _, k, unit, trig in sorted(cands):
@@ -563,7 +570,7 @@ class RhythmGenerator(Generator):
                 arm_picked |= rep.units[unit].channel == "arms"
                 p = float(prom[bi])
                 events.append(GestureEvent(float(beats[bi]), unit, amp * (0.6 + 0.4 * p), f"keyword:{trig}"))
-            if c.semantic == "embedding" and not arm_picked:
+            if c.semantic == "embedding" and not arm_picked and first not in plain:
                 self._by_meaning(spoken[first : last + 1], words[first].start_s, words[last].end_s, beats, prom,
                                  taken, clashes, events, amp)  # fmt: skip
         semantic_arms = np.array(sorted(e.t_s for e in events if rep.units[e.unit].channel == "arms"))

@@ -5,7 +5,8 @@ Protocol (version 1). Text frames are JSON objects with a ``type``; binary frame
 Client -> server:
 
 * ``{"type": "say", "text": "..."}`` or ``{"type": "say", "audio": "/path.wav", "transcript": "/path.TextGrid"}``
-  (files on the server's machine); optional ``"id"`` (a string or an integer) is echoed back;
+  (files on the server's machine); optional ``"id"`` (a string or an integer) is echoed back, optional
+  ``"lenient": true`` drops the text's tags that robogest cannot use (docs/animated-speech.md);
 * ``{"type": "stream_start", "sample_rate": 16000, "format": "int16"}`` (or ``"float32"``), then binary frames of
   mono little-endian PCM (10-100 ms each), optional ``{"type": "words", "words": [["hello", 0.0, 0.31], ...]}``
   (seconds from the stream's start), then ``{"type": "stream_end"}``;
@@ -450,6 +451,8 @@ class _Connection:
                 f"say: text of {len(text)} characters is over the limit of {limit} (--max-say-chars); split it into "
                 "several says"
             )
+        if not isinstance(obj.get("lenient", False), bool):
+            raise InputError('say: "lenient" must be true or false')
         _check_id(obj)
         self.server.check_alive("say")
         self.server.enqueue(_Say(self, obj, self.server._interrupts))
@@ -465,8 +468,9 @@ class _Connection:
             return None
         try:
             h = await asyncio.to_thread(
-                self.robot.say, obj.get("text"), audio=obj.get("audio"), transcript=obj.get("transcript"), wait=False
-            )
+                self.robot.say, obj.get("text"), audio=obj.get("audio"), transcript=obj.get("transcript"), wait=False,
+                lenient=obj.get("lenient", False),
+            )  # fmt: skip
         except RobogestError as e:
             await self.error(f"say: {e}")
             return None

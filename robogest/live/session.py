@@ -453,11 +453,14 @@ class Robot:
         audio: str | Path | None = None,
         transcript: str | Path | None = None,
         wait: bool = True,
+        lenient: bool = False,
     ) -> UtteranceHandle:
         """Speak ``text`` (eSpeak NG) or an ``audio`` file (with an optional ``transcript``) with gestures.
 
         An utterance still playing is replaced (its handle gets ``interrupted``; the new one starts from
-        wherever the robot is, within every limit). Blocks until done when ``wait``.
+        wherever the robot is, within every limit). Blocks until done when ``wait``. Tags in ``text`` (``^start``,
+        ``\\pau=MS\\``...: docs/animated-speech.md) are never spoken; a bad one is an InputError, or with
+        ``lenient`` dropped with one logged warning.
         """
         from robogest.pipeline import DEFAULT_TRAJECTORY_FPS, load_speech_input, motion_to_trajectory
 
@@ -468,8 +471,9 @@ class Robot:
         self._idle_stop()
         try:
             speech = load_speech_input(
-                text=text, audio=audio, transcript=transcript, voice=self.voice, words_per_minute=self.words_per_minute
-            )
+                text=text, audio=audio, transcript=transcript, voice=self.voice, words_per_minute=self.words_per_minute,
+                lenient=lenient, units=getattr(getattr(self._generator, "repertoire", None), "units", None),
+            )  # fmt: skip
             motion = self._generator.generate(speech, seed=self.seed)
             traj, _, _ = motion_to_trajectory(
                 motion, self.config, silent_spans=speech.silent_spans, fps=DEFAULT_TRAJECTORY_FPS,

@@ -5,6 +5,7 @@ Public API::
     SpeechConfig                       settings (frame rate, beat gaps, thresholds, limits)
     load_speech(audio, transcript)     audio file (+ .txt/.TextGrid/.json/.tsv transcript) -> Speech
     synthesize(text, voice, wpm)       offline eSpeak NG TTS with word timings -> Speech
+    synthesize_segments(segments)      the same for text pieces with their own pauses and rates (scripts)
     synthesize_with_stress(text, ...)  the same Speech + eSpeak's stressed-syllable onsets (evaluation only)
     analyze(audio, sr, words, config)  the shared core, mono float32 in -> Speech
     save_features / write_wav / speech_summary
@@ -14,7 +15,15 @@ from __future__ import annotations
 
 from robogest.speech.beats import identify_beats
 from robogest.speech.config import SpeechConfig
-from robogest.speech.core import analyze, audio_beats, load_speech, synthesize, synthesize_with_stress
+from robogest.speech.core import (
+    TextSegment,
+    analyze,
+    audio_beats,
+    load_speech,
+    synthesize,
+    synthesize_segments,
+    synthesize_with_stress,
+)
 from robogest.speech.export import save_features, speech_summary, write_wav
 from robogest.speech.transcript import count_syllables
 from robogest.speech.types import FILLER_WORDS, Speech, SpeechFeatures, Word
@@ -24,6 +33,7 @@ __all__ = [
     "Speech",
     "SpeechConfig",
     "SpeechFeatures",
+    "TextSegment",
     "Word",
     "analyze",
     "audio_beats",
@@ -33,6 +43,7 @@ __all__ = [
     "save_features",
     "speech_summary",
     "synthesize",
+    "synthesize_segments",
     "synthesize_with_stress",
     "write_wav",
 ]

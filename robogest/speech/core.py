@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import re
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -273,35 +274,137 @@ def synthesize_with_stress(
     return _synthesize(text, voice, words_per_minute, config, pause_s, stress=True)
 
 
+@dataclass(frozen=True)
+class TextSegment:
+    """A stretch of text spoken at one rate after a pause: the pieces of an annotated script
+    (:func:`synthesize_segments`).
+
+    Attributes
+    ----------
+    text : str
+        Plain text ("" for a pause alone); an ellipsis inside still pauses ``pause_s``.
+    words_per_minute : int or None
+        Its rate (80-450); None: the call's.
+    pause_before_s : float
+        Silence inserted before it, seconds (0-10).
+    resume_after : (segment, char, seconds) or None
+        The pause lasts at least until ``seconds`` after the start of the word at character ``char`` of segment
+        ``segment`` (an earlier one): speech waiting for something started at that word.
+    """
+
+    text: str
+    words_per_minute: int | None = None
+    pause_before_s: float = 0.0
+    resume_after: tuple[int, int, float] | None = None
+
+
+def synthesize_segments(
+    segments: Sequence[TextSegment],
+    voice: str = "en-us",
+    words_per_minute: int = 160,
+    config: SpeechConfig = _DEFAULT,
+    pause_s: float = 1.2,
+    text: str = "",
+) -> tuple[Speech, tuple[tuple[float, float], ...]]:
+    """:func:`synthesize` of several segments, each at its own rate after its own pause, as one utterance.
+
+    Each text piece is one eSpeak NG call (as around an ellipsis); the pauses are digital silence.
+
+    Returns
+    -------
+    speech : Speech
+        ``text`` (default: the segments' texts joined) is its :attr:`Speech.text`.
+    pauses_s : tuple of (float, float)
+        One per segment: where the silence inserted before it lies, seconds (``(t, t)`` when none).
+    """
+    for seg in segments:
+        if not 0 <= seg.pause_before_s <= 10:
+            raise InputError(f"tts: a pause must be within [0, 10] s, got {seg.pause_before_s}")
+    joined = text or " ".join(s.text for s in segments if s.text.strip())
+    speech, _, pauses = _synthesize_pieces(list(segments), voice, words_per_minute, config, pause_s, False, joined)
+    return speech, pauses
+
+
+def _pieces(segments: list[TextSegment], wpm: int, pause_s: float) -> list[tuple[str, int, float, int, int, bool]]:
+    """The eSpeak calls: ``(text, wpm, pause before s, segment, char offset in it, first of its segment)``; a
+    segment's text is cut at each ellipsis (``pause_s`` between the pieces); one with nothing to say is a pause
+    alone ("")."""
+    out: list[tuple[str, int, float, int, int, bool]] = []
+    for k, seg in enumerate(segments):
+        rate = seg.words_per_minute or wpm
+        starts = [0, *(m.end() for m in PAUSE_MARK.finditer(seg.text))]
+        ends = [*(m.start() for m in PAUSE_MARK.finditer(seg.text)), len(seg.text)]
+        kept = [(a, seg.text[a:b]) for a, b in zip(starts, ends, strict=True)]
+        kept = [(a, c) for a, c in kept if any(ch.isalnum() for ch in c)]
+        if not kept:
+            out.append(("", rate, seg.pause_before_s, k, 0, True))
+        for i, (a, chunk) in enumerate(kept):
+            out.append((chunk, rate, seg.pause_before_s if i == 0 else pause_s, k, a, i == 0))
+    return out
+
+
 def _synthesize(
     text: str, voice: str, words_per_minute: int, config: SpeechConfig, pause_s: float, stress: bool
 ) -> tuple[Speech, np.ndarray]:
     """:func:`synthesize`; with ``stress`` also eSpeak's stressed-syllable onsets (s), else an empty array."""
     if not isinstance(text, str) or not text.strip():
         raise InputError("tts: the text is empty")
+    speech, stressed, _ = _synthesize_pieces(
+        [TextSegment(text)], voice, words_per_minute, config, pause_s, stress, text
+    )
+    return speech, stressed
+
+
+def _synthesize_pieces(
+    segments: list[TextSegment],
+    voice: str,
+    words_per_minute: int,
+    config: SpeechConfig,
+    pause_s: float,
+    stress: bool,
+    text: str,
+) -> tuple[Speech, np.ndarray, tuple[tuple[float, float], ...]]:
+    """The segments spoken one eSpeak call per piece (:func:`_pieces`) and put end to end with their pauses."""
     if not 0 <= pause_s <= 10:
         raise InputError(f"tts: pause_s must be within [0, 10] s, got {pause_s}")
     source = f"tts:{voice}"
-    chunks = [c for c in PAUSE_MARK.split(text) if any(ch.isalnum() for ch in c)]
-    if not chunks:
+    pieces = _pieces(segments, words_per_minute, pause_s)
+    if not any(p[0] for p in pieces):
         raise InputError(f"{source}: the text has no speakable words: {text[:40]!r}")
     parts: list[np.ndarray] = []
     spoken: list[tuple[int, str]] = []  # (start sample at eSpeak's rate, word text)
+    anchors: dict[tuple[int, int], int] = {}  # (segment, char) of each word -> its start sample
     stressed: list[np.ndarray] = []  # seconds
-    offset, esr = 0, 0
-    for i, chunk in enumerate(chunks):
+    pauses: list[tuple[float, float]] = [(0.0, 0.0)] * len(segments)
+    offset, esr, wait_s = 0, 22050, 0.0  # eSpeak's rate (known from its first call; 22050 for every voice)
+    for chunk, rate, before_s, k, at, first in pieces:
+        if first and segments[k].resume_after is not None:
+            seg, char, hold_s = segments[k].resume_after  # type: ignore[misc]
+            t0 = min((s for (sg, c), s in anchors.items() if sg == seg and c >= char), default=None)
+            if t0 is not None:
+                before_s = max(before_s, (t0 - offset) / esr - wait_s + hold_s)
+        wait_s += before_s
+        if not chunk:
+            continue
         if stress:
-            raw, esr, events, phonemes = espeak_synthesize_phonemes(chunk, voice, words_per_minute)
+            raw, esr, events, phonemes = espeak_synthesize_phonemes(chunk, voice, rate)
         else:
-            raw, esr, events = espeak_synthesize(chunk, voice, words_per_minute)
-        if i > 0:
-            parts.append(np.zeros(round(pause_s * esr), dtype=np.float32))
+            raw, esr, events = espeak_synthesize(chunk, voice, rate)
+        if wait_s > 0 and (parts or first):
+            parts.append(np.zeros(round(wait_s * esr), dtype=np.float32))
+            if first:
+                pauses[k] = (offset / esr, (offset + parts[-1].shape[0]) / esr)
             offset += parts[-1].shape[0]
+        wait_s = 0.0
         if stress:
             stressed.append(offset / esr + stressed_vowel_onsets(phonemes, esr))
         spoken += [(offset + e.start_sample, chunk[e.char_start : e.char_end]) for e in events]
+        anchors.update({(k, at + e.char_start): offset + e.start_sample for e in events})
         parts.append(raw)
         offset += raw.shape[0]
+    if wait_s > 0:  # a pause after the last words
+        parts.append(np.zeros(round(wait_s * esr), dtype=np.float32))
+        pauses[pieces[-1][3]] = (offset / esr, (offset + parts[-1].shape[0]) / esr)
     raw = np.concatenate(parts)
     if raw.shape[0] == 0:
         raise InputError(f"{source}: eSpeak NG produced no audio for {text[:40]!r}")
@@ -328,4 +431,4 @@ def _synthesize(
     if not words:
         raise InputError(f"{source}: the text has no speakable words: {text[:40]!r}")
     speech = analyze(a, config.sr, words, config, source=source, text=text)
-    return speech, (np.concatenate(stressed) if stressed else np.zeros(0))
+    return speech, (np.concatenate(stressed) if stressed else np.zeros(0)), tuple(pauses)
