@@ -242,22 +242,22 @@ def peak_pick(
 ) -> np.ndarray:
     """``librosa.util.peak_pick`` without numba; ndarray [shape=(K,)] of int indices into ``x`` [shape=(N,)].
 
-    The maximum test runs vectorised; the mean test (a float32 running sum, as librosa's kernel adds) and
-    the ``wait`` rule only on the local maxima, in order.
+    Both tests run vectorised, the mean as librosa's kernel adds it (a running sum in the dtype of ``x``,
+    divided in float64); only the ``wait`` rule loops, over the frames that passed both.
     """
     n = x.shape[0]
     pad = np.pad(x, (pre_max, post_max), constant_values=-np.inf)
-    win_max = sliding_window_view(pad, pre_max + post_max)[:n].max(axis=1)  # x[lo:hi] (pads never win)
+    win_max = sliding_window_view(pad, pre_max + post_max)[:n].max(axis=1)  # max of x[i - pre_max : i + post_max]
     cand = np.flatnonzero(x == win_max)
+    lo, hi = np.maximum(0, cand - pre_avg), np.minimum(n, cand + post_avg)
+    idx = lo[:, None] + np.arange(pre_avg + post_avg)[None, :]
+    vals = np.where(idx < hi[:, None], x[np.minimum(idx, n - 1)], 0)  # trailing zeros leave the running sum as is
+    mean = np.cumsum(vals, axis=1)[:, -1].astype(np.float64) / (hi - lo)
     peaks: list[int] = []
     nxt = 0
-    for i in cand:
-        if i < nxt:
-            continue
-        a, b = max(0, i - pre_avg), min(n, i + post_avg)
-        mean = float(np.cumsum(x[a:b])[-1]) / (b - a)
-        if x[i] >= mean + delta:
-            peaks.append(int(i))
+    for i in cand[x[cand] >= mean + delta].tolist():
+        if i >= nxt:
+            peaks.append(i)
             nxt = i + wait + 1
     return np.asarray(peaks, dtype=int)
 
