@@ -41,17 +41,19 @@ def to_mono(audio: np.ndarray) -> np.ndarray:
 
 
 def resample(audio: np.ndarray, sr_in: int, sr_out: int) -> np.ndarray:
-    """Resample mono float32 audio (soxr high quality via librosa); identity when rates match.
+    """Resample mono float32 audio (soxr high quality, as librosa.resample; no librosa import); identity when
+    rates match.
 
     Returns
     -------
-    ndarray [shape=(round(N * sr_out / sr_in),)], float32
+    ndarray [shape=(ceil(N * sr_out / sr_in),)], float32
     """
     if int(sr_in) == int(sr_out):
         return np.ascontiguousarray(audio, dtype=np.float32)
-    import librosa
+    from robogest.speech import dsp
 
-    return np.ascontiguousarray(librosa.resample(audio, orig_sr=int(sr_in), target_sr=int(sr_out)), dtype=np.float32)
+    y = np.asarray(audio, dtype=np.float32)
+    return np.ascontiguousarray(dsp.resample(y, int(sr_in), int(sr_out)), dtype=np.float32)
 
 
 def read_audio(path: str | Path, max_duration_s: float) -> tuple[np.ndarray, int]:

@@ -123,7 +123,7 @@ def identify_beats(
 
 
 def detect_onsets(audio: np.ndarray, sr: int, hop: int, envelope_max: float | None = None) -> np.ndarray:
-    """Audio onsets via librosa (spectral flux on a mel spectrogram, peak picking).
+    """Audio onsets: spectral flux on a mel spectrogram, peak picking (librosa's method, see :mod:`.dsp`).
 
     Parameters
     ----------
@@ -148,18 +148,16 @@ def onset_envelope_peaks(
     audio: np.ndarray, sr: int, hop: int, envelope_max: float | None = None
 ) -> tuple[np.ndarray, float]:
     """:func:`detect_onsets` plus the largest envelope value of ``audio`` (0 when too short or silent)."""
-    import librosa
+    from robogest.speech import dsp
 
     if audio.shape[0] < 2 * hop or not np.any(audio):
         return np.zeros(0), 0.0
     n_fft = 1 << max(8, math.ceil(math.log2(4 * hop)))
-    env = librosa.onset.onset_strength(y=audio, sr=sr, hop_length=hop, n_fft=n_fft, n_mels=40, fmax=sr / 2)
+    env = dsp.onset_strength(audio, sr, hop, n_fft, n_mels=40)
     peak = float(env.max() - env.min())
     if envelope_max is not None:
         env = (env - env.min()) / max(envelope_max, peak, 1e-12)
-    frames = librosa.onset.onset_detect(
-        onset_envelope=env, sr=sr, hop_length=hop, units="frames", normalize=envelope_max is None
-    )
+    frames = dsp.onset_detect(env, sr, hop, normalize=envelope_max is None)
     return np.asarray(frames, dtype=np.float64) * hop / sr, peak
 
 

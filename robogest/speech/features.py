@@ -10,11 +10,11 @@ features are computed at the nearest smaller integer hop and interpolated onto t
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Sequence
 
 import numpy as np
 
+from robogest.speech import dsp
 from robogest.speech.config import SpeechConfig
 from robogest.speech.silence import frame_rms
 from robogest.speech.types import SpeechFeatures, Word
@@ -95,8 +95,6 @@ def acoustic_features(
         ``rms`` : ndarray [shape=(T,)], linear amplitude over the mel window;
         ``pitch_hz`` : ndarray [shape=(T,)], Hz, 0 where unvoiced.
     """
-    import librosa
-
     n_frames = config.n_frames(audio.shape[0], sr)
     hop, win = mel_hop_win(sr, config.fps, config.mel_window_s)
     pos = _frame_positions(n_frames, config.fps, sr, hop)
@@ -108,17 +106,14 @@ def acoustic_features(
     rms = frame_rms(audio, sr, hop, win)
     if spectral:
         mel_db = log_mel_db(audio, sr, hop, win, config.n_mels)
-        cep = librosa.feature.mfcc(S=mel_db.T, n_mfcc=N_MFCC).T.astype(np.float32)
+        cep = dsp.mfcc_from_db(mel_db, N_MFCC).astype(np.float32)
     else:
         mel_db = np.zeros((rms.shape[0], config.n_mels), np.float32)
         cep = np.zeros((rms.shape[0], N_MFCC), np.float32)
 
     frame_length = 1 << math.ceil(math.log2(4.0 * sr / config.fmin_hz))
     if audio.shape[0] >= 1:
-        f0 = librosa.yin(
-            audio, fmin=config.fmin_hz, fmax=config.fmax_hz, sr=sr, frame_length=frame_length, hop_length=hop,
-            center=True, pad_mode="constant",
-        )  # fmt: skip
+        f0 = dsp.yin(audio, sr, config.fmin_hz, config.fmax_hz, frame_length, hop)
         harm = harmonicity(audio, sr, f0, frame_length, hop, config.fmax_hz, config.fmin_hz)
     else:  # pragma: no cover - guarded by the caller
         f0 = harm = np.zeros(1)
@@ -155,15 +150,8 @@ def log_mel_db(audio: np.ndarray, sr: int, hop: int, win: int, n_mels: int, cent
     -------
     ndarray [shape=(..., T, n_mels)], dB re 1.0, floor -100 dB
     """
-    import librosa
-
-    with warnings.catch_warnings():  # "n_fft too large" for clips shorter than one window: padding handles it
-        warnings.filterwarnings("ignore", message="n_fft=.*too large", category=UserWarning)
-        mel = librosa.feature.melspectrogram(
-            y=audio, sr=sr, n_fft=win, hop_length=hop, win_length=win, n_mels=n_mels, power=2.0,
-            center=center, pad_mode="constant",
-        )  # fmt: skip
-    db = librosa.power_to_db(mel, ref=1.0, amin=1e-10, top_db=None)  # (..., n_mels, T)
+    mel = dsp.mel_power(audio, sr, win, hop, n_mels, center=center)  # numpy/scipy: nothing to JIT-compile
+    db = dsp.power_to_db(mel, amin=1e-10, top_db=None)  # (..., n_mels, T)
     return np.swapaxes(db, -1, -2).astype(np.float32)  # (..., T, n_mels)
 
 
@@ -188,11 +176,9 @@ def harmonicity(
     -------
     ndarray [shape=(F,)], in [-1, 1]
     """
-    import librosa
-
     pad = frame_length // 2
     y = np.pad(audio.astype(np.float32), (pad, pad + frame_length))
-    frames = librosa.util.frame(y, frame_length=frame_length, hop_length=hop, axis=0)[: f0.shape[0]]
+    frames = dsp.frame(y, frame_length, hop)[: f0.shape[0]]
     lag = np.clip(np.rint(sr / np.maximum(f0[: frames.shape[0]], 1e-3)), math.floor(sr / fmax_hz), sr / fmin_hz)
     lag = lag.astype(int)
     width = frame_length - int(lag.max(initial=1))
