@@ -92,7 +92,9 @@ def gl_renderer_name() -> str:
         name = GL.glGetString(GL.GL_RENDERER)
         ctx.free()
     except Exception as e:  # the GL libraries raise a zoo of types (ImportError, RuntimeError, GLError, ...)
-        raise MissingDependencyError(f"cannot create an OpenGL context for rendering: {e}; {_INSTALL_HINT}") from None
+        raise MissingDependencyError(
+            f"cannot create an OpenGL context (MUJOCO_GL={os.environ.get('MUJOCO_GL', '')!r}): {e}; {_INSTALL_HINT}"
+        ) from None
     return name.decode(errors="replace") if isinstance(name, bytes) else str(name or "")
 
 
