@@ -144,3 +144,20 @@ def test_frames_at_the_video_times_encoded_on_their_own_thread(tmp_path, robot, 
     assert stats.frames == rep.n_video_frames and stats.render_s > 0 and stats.encode_s > 0
     with av.open(str(out)) as c:
         assert c.streams.video[0].frames == rep.n_video_frames
+
+
+@pytest.mark.slow
+def test_speak_video_at_the_renderers_default_size_says_so(tmp_path, capsys):
+    """No --video-size: the size the renderer calls for (640x360 on a software one), said before rendering."""
+    from robogest.cli.main import main
+
+    out = tmp_path / "v.mp4"
+    auto = _needs_renderer(render.video_settings)
+    assert main(["speak", "Hi.", "--video", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert f"video: rendering {auto.width}x{auto.height} at 25 fps on {auto.renderer}" in said
+    with av.open(str(out)) as c:
+        ctx = c.streams.video[0].codec_context
+        assert (ctx.width, ctx.height) == (auto.width, auto.height)
+    if auto.cheap:
+        assert (auto.width, auto.height) == (640, 360) and "--video-size 1280x720 for full size" in said
