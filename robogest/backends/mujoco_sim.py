@@ -319,6 +319,9 @@ class SimReport:
         Mean rendering (not encoding) time per video frame; 0 without video.
     wall_s : float, seconds
         Wall-clock time of the whole run.
+    extra : dict
+        ``playback``: the player's report; with a video, ``video`` (:class:`~robogest.backends.video.VideoStats`,
+        where its time went) and ``video_settings`` (size, options, renderer).
     """
 
     t_s: np.ndarray
