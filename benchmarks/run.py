@@ -29,6 +29,7 @@ ORDER = [
     "bench_meaning.py",
     "bench_live.py",
     "bench_pipecat.py",
+    "bench_video.py",
 ]
 
 

@@ -319,6 +319,9 @@ class SimReport:
         Mean rendering (not encoding) time per video frame; 0 without video.
     wall_s : float, seconds
         Wall-clock time of the whole run.
+    extra : dict
+        ``playback``: the player's report; with a video, ``video`` (:class:`~robogest.backends.video.VideoStats`,
+        where its time went) and ``video_settings`` (size, options, renderer).
     """
 
     t_s: np.ndarray
@@ -381,30 +384,6 @@ def _for_robot(trajectory: Trajectory, robot: RobotConfig, hold_until_s: float) 
     )  # fmt: skip
 
 
-class _VideoObserver:
-    """Renders a frame whenever simulated time reaches the next frame time (a :attr:`MujocoBackend.observers` entry)."""
-
-    def __init__(
-        self, model: mujoco.MjModel, data: mujoco.MjData, writer: _render.VideoWriter, fps: int, robot: RobotConfig
-    ) -> None:
-        self.renderer = _render.make_renderer(model, writer.width, writer.height)
-        self.cam = _render.video_camera(model, data, robot, writer.width, writer.height)
-        self.writer = writer
-        self.frame_dt = 1.0 / fps
-        self.half_step = 0.5 * float(model.opt.timestep)
-        self.next_t = 0.0
-        self.render_s = 0.0
-        self(model, data)  # the frame at t = 0
-
-    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        if data.time >= self.next_t - self.half_step:
-            t0 = time.perf_counter()
-            rgb = _render.render_frame(self.renderer, data, self.cam)
-            self.render_s += time.perf_counter() - t0
-            self.writer.add_frame(rgb)
-            self.next_t += self.frame_dt
-
-
 class _ViewerObserver:
     """The interactive viewer, synced at about 60 Hz of simulated time; closing it only stops the display."""
 
@@ -430,9 +409,9 @@ def simulate(
     video_path: str | Path | None = None,
     audio: np.ndarray | None = None,
     audio_sr: int = 16000,
-    width: int = 1280,
-    height: int = 720,
-    video_fps: int = 25,
+    width: int | None = None,
+    height: int | None = None,
+    video_fps: int = _render.VIDEO_FPS,
     realtime: bool = False,
     view: bool = False,
     progress: Callable[[float, float], None] | None = None,
@@ -456,8 +435,9 @@ def simulate(
         Speech to mux into the video, float in [-1, 1] or int16, at ``audio_sr`` Hz.
     audio_sr : int
         Audio sample rate, Hz.
-    width, height : int
-        Video frame size, pixels (even; default 1280x720).
+    width, height : int, optional
+        Video frame size, pixels (even); default 1280x720 with a GPU renderer, 640x360 with a software one
+        (:func:`~robogest.backends.render.video_settings`, which also picks cheaper render options there).
     video_fps : int
         Video frame rate.
     realtime : bool
@@ -489,24 +469,27 @@ def simulate(
     backend = MujocoBackend(robot, start_q_rad=traj.q_rad[0], count_contacts=True, pace=realtime or view)
     backend.connect()
     model, data = backend._need()[0].model, backend.data
-    writer = video = viewer = None
+    video = viewer = None
     out_path = None
     try:
         if video_path is not None:
-            writer = _render.VideoWriter(video_path, width, height, video_fps, audio, audio_sr)
-            video = _VideoObserver(model, data, writer, video_fps, robot)
+            from robogest.backends.video import VideoRecorder
+
+            settings = _render.video_settings(width, height)
+            video = VideoRecorder(model, data, robot, video_path, settings, video_fps, audio, audio_sr)
             backend.observers.append(video)
         if view:
             viewer = _ViewerObserver(model, data)
             backend.observers.append(viewer)
         rep = play(traj, backend, rate_hz=rate_hz, progress=progress)
-        if writer is not None:
-            out_path = writer.close()
-    finally:
-        if writer is not None and out_path is None:
-            writer.abort()
         if video is not None:
-            video.renderer.close()
+            out_path = video.close()
+    finally:
+        if video is not None:
+            if out_path is None:
+                video.abort()
+            video.release()
+            backend.observers.remove(video)
         if viewer is not None:
             viewer.viewer.close()
         backend.shutdown()
@@ -518,7 +501,8 @@ def simulate(
     q_ach = np.stack([np.interp(traj.t_s[:n] + t0, log["t_s"], log["q_rad"][:, j]) for j in range(q_cmd.shape[1])], 1)
     err_deg = np.degrees(q_ach - q_cmd)
     rms = np.sqrt(np.mean(err_deg**2, axis=0)) if len(err_deg) else np.zeros(len(robot.joints))
-    n_frames = writer.n_frames if writer is not None else 0
+    n_frames = video.n_frames if video is not None else 0
+    video_extra = {"video": video.stats, "video_settings": video.settings} if video is not None else {}
     return SimReport(
         t_s=traj.t_s[:n].copy(),
         q_cmd_rad=q_cmd,
@@ -530,9 +514,9 @@ def simulate(
         self_collision_s=backend.self_collision_s,
         video_path=out_path,
         n_video_frames=n_frames,
-        render_s_per_frame=video.render_s / n_frames if video is not None and n_frames else 0.0,
+        render_s_per_frame=(video.stats.scene_s + video.stats.render_s) / n_frames if n_frames else 0.0,
         wall_s=time.perf_counter() - t_wall0,
-        extra={"playback": rep},
+        extra={"playback": rep, **video_extra},
     )
 
 

@@ -22,7 +22,9 @@ if _headless():
         os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 import contextlib  # noqa: E402
+import functools  # noqa: E402
 import tempfile  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
 from fractions import Fraction  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import TYPE_CHECKING  # noqa: E402
@@ -62,20 +64,100 @@ def _ensure_headless_context() -> None:
         gl_context.GLContext = EGLContext
 
 
-def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
-    """Create an offscreen renderer of ``width`` x ``height`` pixels, or say what to install."""
+#: Video frame rate: frames at these times of simulated time, whatever the control rate.
+VIDEO_FPS = 25
+#: Video frame size with a GPU renderer, and with a software one (Mesa llvmpipe), where a quarter of the pixels
+#: keeps a video near real time on two cores (1280x720 took 12x the speech's duration there).
+FULL_VIDEO_SIZE = (1280, 720)
+SOFTWARE_VIDEO_SIZE = (640, 360)
+#: Cheaper rendering on a software renderer: no multisampling (2x tripled the cost of a 640x360 frame in llvmpipe)
+#: and a shadow map of at most 512 pixels (1024 cost a fifth more, for shadow edges that look the same).
+CHEAP_OFFSAMPLES = 0
+CHEAP_SHADOWSIZE = 512
+_SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "swiftshader", "software rasterizer")
+
+
+@functools.lru_cache(maxsize=1)
+def gl_renderer_name() -> str:
+    """The offscreen OpenGL renderer's name (``GL_RENDERER``, e.g. ``llvmpipe (LLVM 15.0.6, 256 bits)``), read from a
+    16x16 context made once per process; "" if the driver does not say."""
+    from mujoco.rendering.classic import gl_context
+
+    _ensure_headless_context()
+    try:
+        ctx = gl_context.GLContext(16, 16)
+        ctx.make_current()
+        from OpenGL import GL
+
+        name = GL.glGetString(GL.GL_RENDERER)
+        ctx.free()
+    except Exception as e:  # the GL libraries raise a zoo of types (ImportError, RuntimeError, GLError, ...)
+        raise MissingDependencyError(
+            f"cannot create an OpenGL context (MUJOCO_GL={os.environ.get('MUJOCO_GL', '')!r}): {e}; {_INSTALL_HINT}"
+        ) from None
+    return name.decode(errors="replace") if isinstance(name, bytes) else str(name or "")
+
+
+def is_software_renderer(name: str) -> bool:
+    """True for a CPU rasterizer (Mesa llvmpipe/softpipe, SwiftShader): frames cost tens of ms per megapixel."""
+    return any(s in name.lower() for s in _SOFTWARE_RENDERERS)
+
+
+@dataclass(frozen=True)
+class VideoSettings:
+    """How a video will be rendered: frame size, whether cheap options apply (software renderer), and on what."""
+
+    width: int
+    height: int
+    cheap: bool
+    renderer: str
+
+    @property
+    def size(self) -> str:
+        return f"{self.width}x{self.height}"
+
+
+def video_settings(width: int | None = None, height: int | None = None) -> VideoSettings:
+    """Frame size and render options for a video: ``width`` x ``height`` where given, else :data:`FULL_VIDEO_SIZE`
+    with a GPU renderer and :data:`SOFTWARE_VIDEO_SIZE` with a software one; cheap options on a software renderer."""
+    name = gl_renderer_name()
+    cheap = is_software_renderer(name)
+    auto_w, auto_h = SOFTWARE_VIDEO_SIZE if cheap else FULL_VIDEO_SIZE
+    width, height = int(width or auto_w), int(height or auto_h)
+    _check_size(width, height)
+    return VideoSettings(width, height, cheap, name)
+
+
+def _check_size(width: int, height: int) -> None:
     if width < 16 or height < 16 or width % 2 or height % 2:
         raise InputError(f"video size {width}x{height}: use even sizes of at least 16 pixels (H.264 needs even)")
+
+
+def make_renderer(model: mujoco.MjModel, width: int, height: int, *, cheap: bool = False) -> mujoco.Renderer:
+    """Create an offscreen renderer of ``width`` x ``height`` pixels, or say what to install.
+
+    ``cheap`` (for a software renderer): no multisampling, a shadow map of at most :data:`CHEAP_SHADOWSIZE` pixels
+    and no reflections; ``model``'s own settings are left as they were (the GL context copies them when made)."""
+    _check_size(width, height)
     # The offscreen buffer must hold the frame; scenes ask for 1280x960, enlarge it for bigger requests.
     model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
     model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
     _ensure_headless_context()
+    quality = model.vis.quality
+    saved = int(quality.offsamples), int(quality.shadowsize)
+    if cheap:
+        quality.offsamples, quality.shadowsize = CHEAP_OFFSAMPLES, min(saved[1], CHEAP_SHADOWSIZE)
     try:
-        return mujoco.Renderer(model, height=height, width=width)
+        renderer = mujoco.Renderer(model, height=height, width=width)
     except Exception as e:  # the GL libraries raise a zoo of types (ImportError, RuntimeError, GLError, ...)
         raise MissingDependencyError(
             f"cannot create the MuJoCo renderer (MUJOCO_GL={os.environ.get('MUJOCO_GL', '')!r}): {e}; {_INSTALL_HINT}"
         ) from None
+    finally:
+        quality.offsamples, quality.shadowsize = saved
+    if cheap:
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+    return renderer
 
 
 def camera_id(model: mujoco.MjModel, name: str = CAMERA) -> int:

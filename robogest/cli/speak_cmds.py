@@ -57,8 +57,9 @@ def _add_output_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--video", metavar="FILE.mp4", help="render the simulated robot with the speech audio (sim; three-quarter view)"
     )
-    p.add_argument("--video-size", metavar="WxH", type=checks.frame_size, default=(1280, 720),
-                   help="video frame size in pixels, even numbers (default: 1280x720)")  # fmt: skip
+    p.add_argument("--video-size", metavar="WxH", type=checks.frame_size,
+                   help="video frame size in pixels, even numbers (default: 1280x720 with a GPU renderer, 640x360 "
+                   "with a software one such as Mesa llvmpipe, where it renders near real time)")  # fmt: skip
     p.add_argument("--plot", metavar="FILE.png", help="plot wrist trajectories, beats, silent spans, joint commands")
     p.add_argument("--realtime", action="store_true", help="run the simulation in real time (sim)")
     p.add_argument("--view", action="store_true", help="open the MuJoCo viewer (needs a display)")
@@ -183,18 +184,7 @@ def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr:
 
         print(f"exported: {export_trajectory(traj, args.export)}")
     if backend is None:
-        from robogest.backends.mujoco_sim import simulate
-
-        width, height = args.video_size
-        with progress_bar("simulating" + (" + rendering" if args.video else "")) as cb:
-            rep = simulate(
-                traj, robot, video_path=args.video, audio=audio, audio_sr=sr, realtime=args.realtime,
-                view=args.view, progress=lambda t, d: cb(round(t, 1), round(d, 1)), rate_hz=args.fps,
-                width=width, height=height,
-            )  # fmt: skip
-        print(f"sim tracking error: RMS {rep.tracking_rms_deg_overall:.2f} deg, max {rep.max_abs_error_deg:.2f} deg")
-        if args.video:
-            print(f"video: {args.video}")
+        _simulate(args, robot, traj, audio, sr)
     else:
         from robogest.backends.player import play
 
@@ -217,6 +207,31 @@ def _tag_units(generator: str, opts: dict) -> dict | None:
     from robogest.generators import lexicon as lx
 
     return (opts.get("repertoire") or lx.default_repertoire()).units
+
+
+def _simulate(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr: int) -> None:
+    """Play on the simulator; with ``--video``, say first at what size and on what renderer, and in the progress
+    line how long the rest will take."""
+    from robogest.backends.mujoco_sim import simulate
+    from robogest.cli.progress import progress_bar
+
+    width = height = None
+    if args.video:
+        from robogest.backends.render import VIDEO_FPS, video_settings
+
+        v = video_settings(*(args.video_size or (None, None)))
+        width, height = v.width, v.height
+        soft = " (software)" + ("; --video-size 1280x720 for full size" if not args.video_size else "")
+        print(f"video: rendering {v.size} at {VIDEO_FPS} fps on {v.renderer}{soft if v.cheap else ''}", flush=True)
+    with progress_bar("simulating" + (" + rendering" if args.video else ""), eta=bool(args.video)) as cb:
+        rep = simulate(
+            traj, robot, video_path=args.video, audio=audio, audio_sr=sr, realtime=args.realtime,
+            view=args.view, progress=lambda t, d: cb(round(t, 1), round(d, 1)), rate_hz=args.fps,
+            width=width, height=height,
+        )  # fmt: skip
+    print(f"sim tracking error: RMS {rep.tracking_rms_deg_overall:.2f} deg, max {rep.max_abs_error_deg:.2f} deg")
+    if args.video:
+        print(f"video: {args.video} ({rep.n_video_frames} frames, {rep.wall_s:.1f} s)")
 
 
 def run_speak(args: argparse.Namespace) -> int:

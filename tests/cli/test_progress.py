@@ -61,3 +61,20 @@ def test_progress_bar_is_quiet_when_stderr_is_captured_in_process(capsys):
     with progress_bar("simulating") as cb:
         cb(5, 5)
     assert capsys.readouterr().err == ""
+
+
+def test_eta_lines_say_how_long_the_rest_takes_from_the_rate_since_the_first_update():
+    """With ``eta`` (a video render): the set-up before the first update does not count; no line before an estimate
+    from a second of work; each line then says the time left at the rate so far."""
+    clock, out = FakeClock(), io.StringIO()
+    update = progress_lines("simulating + rendering", stream=out, clock=clock, eta=True)
+    clock.t += 5.0  # renderer set-up: not part of the rate
+    update(0, 100)
+    for done in range(5, 101, 5):
+        clock.t += 0.5  # 10 units a second: 10 s in all
+        update(done, 100)
+    lines = out.getvalue().splitlines()
+    assert lines[0] == "robogest: simulating + rendering: 10% (10/100), about 9 s left"
+    assert lines[4] == "robogest: simulating + rendering: 50% (50/100), about 5 s left"
+    assert lines[-1] == "robogest: simulating + rendering: 100% (100/100)"
+    assert len(lines) == 10
