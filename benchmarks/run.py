@@ -28,6 +28,7 @@ ORDER = [
     "bench_generalize.py",
     "bench_meaning.py",
     "bench_live.py",
+    "bench_say_async.py",
 ]
 
 
