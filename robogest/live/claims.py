@@ -41,7 +41,7 @@ def claim(key: tuple[str, str], session: Any) -> None:
     global _hooked
     with _lock:
         other = _claims.get(key)
-        if other is not None and other is not session:
+        if other is not None and other is not session and other._holds_robot():  # a dead one is taken over
             kind, name = key
             what = f"serial port {name}" if kind == "port" else f"robot {name} ({kind})"
             raise BackendError(

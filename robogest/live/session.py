@@ -416,14 +416,17 @@ class Robot:
         if self.warm_up:
             self._warm_up()
 
+    def _holds_robot(self) -> bool:
+        """Open and alive: its control loop runs (a session whose backend failed went to rest, torque off)."""
+        loop = self.loop
+        return bool(self._opened and loop is not None and not loop._closed and loop._error is None)
+
     @property
     def ready(self) -> bool:
         """Open, holding the robot, and warmed up (idle motion running, speech and planning code loaded): the
         first utterance from now on starts as fast as later ones."""
         w = self._worker
-        loop = self.loop
-        alive = self._opened and loop is not None and not loop._closed and loop._error is None
-        return bool(alive and w is not None and w.ready.is_set())
+        return bool(self._holds_robot() and w is not None and w.ready.is_set())
 
     def wait_ready(self, timeout_s: float | None = None) -> bool:
         """Block until :attr:`ready` (False after ``timeout_s``); raises if the session is not open or died."""

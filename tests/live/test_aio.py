@@ -184,3 +184,12 @@ def test_await_say_stream_and_interrupt_never_block_the_event_loop():
     assert out["interrupt"]["at_rest_s"] is not None
     assert out["stream"] and {"first_goal", "done"} <= out["stream_events"]
     assert out["closed"]
+
+
+def test_a_session_whose_robot_failed_does_not_keep_it_from_being_opened_again():
+    """What serve's reopen does after a servo was lost: the dead session holds nothing."""
+    with Robot("humanoid_xl430", **FAST) as dead:
+        dead.loop._error = BackendError("servo id 3: lost (simulated)")
+        with Robot("humanoid_xl430", **FAST) as again:
+            assert again.status()["open"]
+        dead.loop._error = None
