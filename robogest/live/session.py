@@ -392,7 +392,6 @@ class Robot:
             raise
         try:
             self._worker = Worker(self._background_start, name="robogest-warm-up")
-            self._warm = self._worker._thread
             self._worker.start()
         except BaseException:  # e.g. a signal right here: the loop holds the robot with torque on
             self.close()
