@@ -472,8 +472,9 @@ class _Connection:
                 obj.get("text"), audio=obj.get("audio"), transcript=obj.get("transcript"), wait=False,
                 **_body(obj, "say"),
             )  # fmt: skip
-            while not h.wait_started(0):
+            while not h.prepared:  # polled: the event loop never blocks on it
                 await asyncio.sleep(_EVENT_POLL_S / 4)
+            h.wait_started(0)  # raises what went wrong while preparing
         except RobogestError as e:
             await self.error(f"say: {e}")
             return None

@@ -175,12 +175,18 @@ class UtteranceHandle:
         """Block until the utterance is prepared and handed to the robot, or abandoned (False on ``timeout_s``);
         raises its preparation's failure."""
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
-        while not self._attached.wait(0.05):  # short waits: signals reach the main thread between them
+        step = 0.05  # short waits: signals reach the main thread between them
+        while not self._attached.wait(step if deadline is None else max(0.0, min(step, deadline - time.monotonic()))):
             if deadline is not None and time.monotonic() >= deadline:
                 return False
         if self._error is not None:
             raise self._error
         return True
+
+    @property
+    def prepared(self) -> bool:
+        """Handed to the robot, abandoned or failed: :meth:`wait_started` would return at once."""
+        return self._attached.is_set()
 
     def wait(self, timeout_s: float | None = None) -> bool:
         """Block until :attr:`done` (or ``timeout_s``); raises a failure of its preparation or of the backend.
