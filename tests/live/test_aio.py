@@ -193,3 +193,10 @@ def test_a_session_whose_robot_failed_does_not_keep_it_from_being_opened_again()
         with Robot("humanoid_xl430", **FAST) as again:
             assert again.status()["open"]
         dead.loop._error = None
+
+
+def test_per_call_styles_are_the_clis():
+    from robogest.cli.common import STYLES
+    from robogest.live.style import STYLES as LIVE
+
+    assert LIVE == STYLES
