@@ -97,7 +97,7 @@ def bench_session() -> None:
     sp = synthesize(TEXT)
     pcm = np.round(sp.audio * 32767).astype(np.int16)
     with Robot("humanoid_xl430", backend="sim", idle=True, on_tick=on_tick) as robot:
-        robot._warm.join()
+        robot.wait_ready()
         robot.say("Warm up.")  # first TTS call in this process
         say_lat, play_lat = [], []
         for _ in range(3):

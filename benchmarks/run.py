@@ -30,6 +30,7 @@ ORDER = [
     "bench_live.py",
     "bench_pipecat.py",
     "bench_video.py",
+    "bench_say_async.py",
 ]
 
 

@@ -6,8 +6,11 @@ Client -> server:
 
 * ``{"type": "say", "text": "..."}`` or ``{"type": "say", "audio": "/path.wav", "transcript": "/path.TextGrid"}``
   (files on the server's machine); optional ``"id"`` (a string or an integer) is echoed back, optional
-  ``"lenient": true`` drops the text's tags that robogest cannot use (docs/animated-speech.md);
-* ``{"type": "stream_start", "sample_rate": 16000, "format": "int16"}`` (or ``"float32"``), then binary frames of
+  ``"lenient": true`` drops the text's tags that robogest cannot use (docs/animated-speech.md); optional body
+  language for this utterance only: ``"style"`` (calm, neutral, lively) or ``"amount"`` (0-2), and ``"gestures"``
+  ("auto", "none", or a folder or YAML file of gesture units on the server's machine);
+* ``{"type": "stream_start", "sample_rate": 16000, "format": "int16"}`` (or ``"float32"``; and the same optional
+  ``"style"``, ``"amount"``, ``"gestures"``), then binary frames of
   mono little-endian PCM (10-100 ms each), optional ``{"type": "words", "words": [["hello", 0.0, 0.31], ...]}``
   (seconds from the stream's start), then ``{"type": "stream_end"}``;
 * ``{"type": "interrupt"}``: stop now, glide to rest;
@@ -454,6 +457,7 @@ class _Connection:
         if not isinstance(obj.get("lenient", False), bool):
             raise InputError('say: "lenient" must be true or false')
         _check_id(obj)
+        _body(obj, "say")
         self.server.check_alive("say")
         self.server.enqueue(_Say(self, obj, self.server._interrupts))
 
@@ -466,11 +470,14 @@ class _Connection:
         if self.server.lost is not None:
             await self.error(f"say: refused, the robot session was lost ({self.server.lost})")
             return None
-        try:
-            h = await asyncio.to_thread(
-                self.robot.say, obj.get("text"), audio=obj.get("audio"), transcript=obj.get("transcript"), wait=False,
-                lenient=obj.get("lenient", False),
+        try:  # say() only queues it; it is accepted once prepared (a bad file or tag: an error, not accepted)
+            h = self.robot.say(
+                obj.get("text"), audio=obj.get("audio"), transcript=obj.get("transcript"), wait=False,
+                lenient=obj.get("lenient", False), **_body(obj, "say"),
             )  # fmt: skip
+            while not h.prepared:  # polled: the event loop never blocks on it
+                await asyncio.sleep(_EVENT_POLL_S / 4)
+            h.wait_started(0)  # raises what went wrong while preparing
         except RobogestError as e:
             await self.error(f"say: {e}")
             return None
@@ -486,10 +493,11 @@ class _Connection:
         if fmt not in ("int16", "float32"):
             raise InputError(f'stream_start: "format" {fmt!r} is not supported; use "int16" or "float32"')
         _check_id(obj)
+        body = _body(obj, "stream_start")
         self.server.check_alive("stream_start")
         if self.stream is not None:
             await asyncio.to_thread(self.stream.close)
-        self.stream = await asyncio.to_thread(self.robot.stream, sr)
+        self.stream = await asyncio.to_thread(self.robot.stream, sr, **body)
         self.stream_format = fmt
         self._fed_n, self._played_t0, self._dropped = 0, None, 0
         h = self.stream.handle
@@ -624,6 +632,16 @@ def _check_id(obj: dict) -> None:
     if i is None or (isinstance(i, str) and len(i) <= 256) or (type(i) is int and abs(i) < 2**63):
         return
     raise InputError('"id" must be a string of at most 256 characters or an integer of 64 bits')
+
+
+def _body(obj: dict, what: str) -> dict:
+    """The message's per-utterance body language (``style``, ``amount``, ``gestures``), checked: InputError naming
+    the field."""
+    from robogest.live.style import body_language
+
+    body = {k: obj[k] for k in ("style", "amount", "gestures") if obj.get(k) is not None}
+    body_language(**body, what=what)
+    return body
 
 
 def _plain(e: dict) -> dict:

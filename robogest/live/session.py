@@ -37,11 +37,14 @@ import numpy as np
 from robogest.backends.audio import AudioOut, open_output
 from robogest.backends.base import Backend
 from robogest.errors import InputError
+from robogest.live import claims
 from robogest.live.idle import IdleConfig, IdleMotion
+from robogest.live.style import BodyLanguage, body_language
+from robogest.live.worker import Worker
 from robogest.robot.registry import DEFAULT_ROBOT
 
 #: Event types an utterance can report, in the order they usually happen.
-EVENT_TYPES = ("requested", "first_chunk", "first_goal", "started", "audio_start", "done", "interrupted")
+EVENT_TYPES = ("requested", "first_chunk", "first_goal", "started", "audio_start", "done", "interrupted", "error")
 _ids = itertools.count(1)
 
 
@@ -113,6 +116,7 @@ class UtteranceHandle:
         self._attached = threading.Event()
         self._play: Any = None
         self._abandoned = False
+        self._error: BaseException | None = None
         self.trajectory: Any = None  #: the Trajectory played (or the growing feed of a stream)
 
     def _add(self, type_: str, t: float | None = None, **extra: Any) -> None:
@@ -125,9 +129,24 @@ class UtteranceHandle:
 
     def _abandon(self, why: str) -> None:
         """Nothing will be played (e.g. interrupted before the first motion was planned; the caller resumes idle)."""
+        with self._lock:
+            if self._abandoned:  # once (an interrupt finishes a say being prepared, whose worker then gives up too)
+                return
         self._abandoned = True
         self._add("interrupted", reason=why)
         self._attached.set()
+
+    def _fail(self, e: BaseException) -> None:
+        """Its preparation failed: an ``error`` event (``message``), :meth:`wait` raises ``e``; nothing plays."""
+        self._error = e
+        self._abandoned = True
+        self._add("error", message=str(e) or type(e).__name__)
+        self._attached.set()
+
+    @property
+    def error(self) -> BaseException | None:
+        """Why the utterance could not be prepared (bad input, unknown gesture tag...), or None."""
+        return self._error
 
     @property
     def events(self) -> list[dict]:
@@ -152,12 +171,29 @@ class UtteranceHandle:
     def interrupted(self) -> bool:
         return self.event("interrupted") is not None
 
-    def wait(self, timeout_s: float | None = None) -> bool:
-        """Block until :attr:`done` (or ``timeout_s``); re-raises a backend failure. Returns :attr:`done`."""
+    def wait_started(self, timeout_s: float | None = None) -> bool:
+        """Block until the utterance is prepared and handed to the robot, or abandoned (False on ``timeout_s``);
+        raises its preparation's failure."""
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
-        while not self._attached.wait(0.05):  # short waits: signals reach the main thread between them
+        step = 0.05  # short waits: signals reach the main thread between them
+        while not self._attached.wait(step if deadline is None else max(0.0, min(step, deadline - time.monotonic()))):
             if deadline is not None and time.monotonic() >= deadline:
                 return False
+        if self._error is not None:
+            raise self._error
+        return True
+
+    @property
+    def prepared(self) -> bool:
+        """Handed to the robot, abandoned or failed: :meth:`wait_started` would return at once."""
+        return self._attached.is_set()
+
+    def wait(self, timeout_s: float | None = None) -> bool:
+        """Block until :attr:`done` (or ``timeout_s``); raises a failure of its preparation or of the backend.
+        Returns :attr:`done`."""
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        if not self.wait_started(timeout_s):
+            return False
         if self._play is None:
             return True
         left = None if deadline is None else max(0.0, deadline - time.monotonic())
@@ -201,8 +237,8 @@ class Robot:
     backend_options : dict, optional
         More keyword options of the backend (e.g. ``lost_after_s`` of a servo backend).
     warm_up : bool
-        Run the speech and planning code once in the background after opening, so the first utterance is as
-        fast as later ones.
+        Run the speech (eSpeak NG, librosa's numba code) and planning code of a say and of a stream once in the
+        background after opening, so the first utterance after :attr:`ready` is as fast as later ones.
     blas_threads : int or None
         While the session is open, BLAS thread pools of the whole process are limited to this many threads (the
         planner's matrices are small; more threads only take cores from the control loop: 2.5x faster streaming
@@ -283,6 +319,10 @@ class Robot:
         self._plan_lock = threading.Lock()
         self._interrupts = 0  #: interrupt() calls so far: an utterance asked for before one is not started after
         self._streams: weakref.WeakSet[StreamUtterance] = weakref.WeakSet()  # every stream not yet finished
+        self._worker: Worker | None = None  #: gets the session ready, then prepares says (off the caller's thread)
+        self._claim: tuple[str, str] | None = None  #: what this session holds (robogest.live.claims)
+        self._generators: dict[tuple, Any] = {}  #: rhythm generators of per-call body language, by options
+        self._preparing: set[UtteranceHandle] = set()  #: says asked for and not yet playing (under _say_lock)
 
     # --- life cycle --------------------------------------------------------------------------------
     def open(self) -> Robot:
@@ -298,6 +338,19 @@ class Robot:
             )
         if self._opened:
             return self
+        port = self.port or getattr(getattr(self.config, "bus", None), "port", None)
+        key = claims.claim_key(self.backend_name, self.config.name, port)
+        claims.claim(key, self)  # BackendError (one line) if this robot or port is in use here
+        self._claim = key
+        try:
+            return self._open()
+        except BaseException:
+            if not self._opened:
+                claims.release(key, self)
+                self._claim = None
+            raise
+
+    def _open(self) -> Robot:
         from robogest.backends import get_backend_factory
         from robogest.backends.control import ControlLoop
         from robogest.generators import make_generator
@@ -344,8 +397,8 @@ class Robot:
                 self._blas = None
             raise
         try:
-            self._warm = threading.Thread(target=self._background_start, daemon=True, name="robogest-warm-up")
-            self._warm.start()
+            self._worker = Worker(self._background_start, name="robogest-warm-up")
+            self._worker.start()
         except BaseException:  # e.g. a signal right here: the loop holds the robot with torque on
             self.close()
             raise
@@ -368,12 +421,50 @@ class Robot:
         if self.warm_up:
             self._warm_up()
 
+    def _holds_robot(self) -> bool:
+        """Open and alive: its control loop runs (a session whose backend failed went to rest, torque off)."""
+        loop = self.loop
+        return bool(self._opened and loop is not None and not loop._closed and loop._error is None)
+
+    @property
+    def ready(self) -> bool:
+        """Open, holding the robot, and warmed up (idle motion running, speech and planning code loaded): the
+        first utterance from now on starts as fast as later ones."""
+        w = self._worker
+        return bool(self._holds_robot() and w is not None and w.ready.is_set())
+
+    def wait_ready(self, timeout_s: float | None = None) -> bool:
+        """Block until :attr:`ready` (False after ``timeout_s``); raises if the session is not open or died."""
+        self._check_open()
+        w = self._worker
+        assert w is not None
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        while not w.ready.wait(0.05):  # short waits: signals reach the main thread between them
+            if deadline is not None and time.monotonic() >= deadline:
+                return False
+        self._check_open()
+        return True
+
     def _warm_up(self) -> None:
-        """Load and run the speech and planning code once (librosa's first calls compile and import a lot), so
-        the first utterance starts as fast as later ones. Runs in the background while the robot idles."""
+        """Load and run the speech and planning code once (librosa's first calls compile and import a lot; the
+        first eSpeak NG call loads its voice), for a say and for a stream, so the first utterance starts as fast
+        as later ones. Runs in the worker while the robot idles; stops early when the session closes."""
         from robogest.live.planner import StreamingPlanner
+        from robogest.pipeline import DEFAULT_TRAJECTORY_FPS, load_speech_input, motion_to_trajectory
         from robogest.speech.stream import SpeechStream
 
+        stopping = self._worker.stopping if self._worker is not None else threading.Event()
+        with contextlib.suppress(Exception):
+            speech = load_speech_input(text="Hello there, nice to meet you.", voice=self.voice,
+                                       words_per_minute=self.words_per_minute)  # fmt: skip
+            if stopping.is_set():
+                return
+            motion = self._generator.generate(speech, seed=self.seed)
+            if stopping.is_set():
+                return
+            motion_to_trajectory(motion, self.config, silent_spans=speech.silent_spans, fps=DEFAULT_TRAJECTORY_FPS)
+        if stopping.is_set():
+            return
         with contextlib.suppress(Exception):
             sr = 16000
             t = np.arange(int(0.8 * sr)) / sr
@@ -398,9 +489,20 @@ class Robot:
         try:
             return self.loop.close()
         finally:
-            if self._blas is not None:
-                self._blas.restore_original_limits()
-                self._blas = None
+            try:
+                if self._worker is not None:  # joined: a thread left in numba code can crash the exit
+                    self._worker.stop()
+            finally:
+                if self._blas is not None:
+                    self._blas.restore_original_limits()
+                    self._blas = None
+                claims.release(self._claim, self)
+
+    def _release_native(self) -> None:
+        """At interpreter exit, after :meth:`close`: drop the limiter's native (ruckig) objects before the
+        interpreter tears the extension modules down (nanobind reports those still alive as "leaked")."""
+        if self.loop is not None and self.loop._closed:
+            self.loop.limiter = None
 
     def __enter__(self) -> Robot:
         from robogest.backends.control import signals_end_at_rest
@@ -454,44 +556,118 @@ class Robot:
         transcript: str | Path | None = None,
         wait: bool = True,
         lenient: bool = False,
+        style: str | None = None,
+        amount: float | None = None,
+        gestures: str | None = None,
     ) -> UtteranceHandle:
         """Speak ``text`` (eSpeak NG) or an ``audio`` file (with an optional ``transcript``) with gestures.
 
-        An utterance still playing is replaced (its handle gets ``interrupted``; the new one starts from
-        wherever the robot is, within every limit). Blocks until done when ``wait``. Tags in ``text`` (``^start``,
-        ``\\pau=MS\\``...: docs/animated-speech.md) are never spoken; a bad one is an InputError, or with
-        ``lenient`` dropped with one logged warning.
+        Returns at once (``wait=False``) or when the utterance is done: the speech and its motion are prepared in
+        the session's worker, in the order asked; a failure there (an unreadable file, an unknown gesture tag) is
+        raised by :meth:`UtteranceHandle.wait` and reported as an ``error`` event. An utterance still playing is
+        replaced (its handle gets ``interrupted``; the new one starts from wherever the robot is, within every
+        limit). ``style`` (calm, neutral, lively) or ``amount`` (0-2) and ``gestures`` ("auto", "none", or a folder
+        or YAML file of gesture units) override the session's for this utterance only (the ``rhythm`` generator).
+        Tags in ``text`` (``^start``, ``\\pau=MS\\``...: docs/animated-speech.md) are never spoken; a bad one is an
+        InputError raised by ``wait``, or with ``lenient`` dropped with one logged warning.
         """
-        from robogest.pipeline import DEFAULT_TRAJECTORY_FPS, load_speech_input, motion_to_trajectory
-
         self._check_open()
+        if (text is None) == (audio is None):
+            raise InputError("give either text to speak (TEXT, or --text) or --audio FILE (not both, not neither)")
+        body = body_language(style, amount, gestures)
+        generator = self._generator if body.empty else None  # per-call: built in the worker
+        if generator is None and self.generator_name != "rhythm":
+            raise InputError(f'say: style, amount and gestures are options of the "rhythm" generator, not '
+                             f"{self.generator_name!r} (this session's)")  # fmt: skip
         h = UtteranceHandle("say")
         h._add("requested")
-        asked = self._interrupts
+        with self._say_lock:
+            asked = self._interrupts
+            self._preparing.add(h)
         self._idle_stop()
-        try:
-            speech = load_speech_input(
-                text=text, audio=audio, transcript=transcript, voice=self.voice, words_per_minute=self.words_per_minute,
-                lenient=lenient, units=getattr(getattr(self._generator, "repertoire", None), "units", None),
-            )  # fmt: skip
-            motion = self._generator.generate(speech, seed=self.seed)
-            traj, _, _ = motion_to_trajectory(
-                motion, self.config, silent_spans=speech.silent_spans, fps=DEFAULT_TRAJECTORY_FPS,
-                audio_path=str(speech.audio_path or ""),
-            )  # fmt: skip
-        except BaseException:
-            self._idle_resume()
-            raise
-        h.trajectory = traj
-        self._start(h, traj, lambda out: out.write(speech.audio), speech.sr, asked)
+
+        def drop() -> None:
+            self._preparing.discard(h)
+            h._abandon("session closed")
+
+        self._worker.submit(lambda: self._prepare(h, asked, text, audio, transcript, generator or body, lenient), drop)
         if wait:
             h.wait()
         return h
 
-    def stream(self, sample_rate: int = 16000, lookahead_s: float | None = None) -> StreamUtterance:
-        """A streamed utterance: ``with robot.stream(16000) as s: s.feed(chunk, words=None)``."""
+    def _prepare(
+        self, h: UtteranceHandle, asked: int, text: Any, audio: Any, transcript: Any, gen: Any, lenient: bool = False
+    ) -> None:
+        """In the worker: speech, gestures, trajectory, then play (unless interrupted since it was asked for)."""
+        from robogest.pipeline import DEFAULT_TRAJECTORY_FPS, load_speech_input, motion_to_trajectory
+
+        try:
+            if self._interrupts != asked:  # barge-in before its turn: nothing to prepare
+                h._abandon("interrupt")
+                self._idle_resume()
+                return
+            if isinstance(gen, BodyLanguage):
+                gen = self._generator_for(gen)
+            speech = load_speech_input(
+                text=text, audio=audio, transcript=transcript, voice=self.voice, words_per_minute=self.words_per_minute,
+                lenient=lenient, units=getattr(getattr(gen, "repertoire", None), "units", None),
+            )  # fmt: skip
+            motion = gen.generate(speech, seed=self.seed)
+            traj, _, _ = motion_to_trajectory(
+                motion, self.config, silent_spans=speech.silent_spans, fps=DEFAULT_TRAJECTORY_FPS,
+                audio_path=str(speech.audio_path or ""),
+            )  # fmt: skip
+            h.trajectory = traj
+            self._start(h, traj, lambda out: out.write(speech.audio), speech.sr, asked)
+        except Exception as e:  # reported on the handle; the session goes on
+            if not h.done:
+                h._fail(e)
+            self._idle_resume()
+        finally:
+            with self._say_lock:
+                self._preparing.discard(h)
+
+    def _generator_for(self, body: BodyLanguage) -> Any:
+        """The ``rhythm`` generator of the session's options with ``body``'s overrides (kept for reuse)."""
+        from robogest.generators import make_generator
+
+        key = (body.amount, body.gestures)
+        gen = self._generators.get(key)
+        if gen is None:
+            gen = make_generator("rhythm", **body.options(self.generator_options))
+            if len(self._generators) >= 16:  # a client trying every amount must not grow it without bound
+                self._generators.clear()
+            self._generators[key] = gen
+        return gen
+
+    def stream(
+        self,
+        sample_rate: int = 16000,
+        lookahead_s: float | None = None,
+        *,
+        style: str | None = None,
+        amount: float | None = None,
+        gestures: str | None = None,
+    ) -> StreamUtterance:
+        """A streamed utterance: ``with robot.stream(16000) as s: s.feed(chunk, words=None)``.
+
+        ``style``/``amount``/``gestures`` as in :meth:`say`, for this stream only (streams always plan with the
+        ``rhythm`` generator: the session's options when its generator is ``rhythm``, else the defaults)."""
         self._check_open()
-        return StreamUtterance(self, int(sample_rate), self.lookahead_s if lookahead_s is None else lookahead_s)
+        body = body_language(style, amount, gestures, what="stream")
+        if body.empty:
+            gen = self._generator if self._generator.name == "rhythm" else self._rhythm
+        else:
+            gen = self._generator_for(body) if self.generator_name == "rhythm" else self._rhythm_for(body)
+        return StreamUtterance(
+            self, int(sample_rate), self.lookahead_s if lookahead_s is None else lookahead_s, generator=gen
+        )
+
+    def _rhythm_for(self, body: BodyLanguage) -> Any:
+        """A stream's ``rhythm`` generator with ``body`` when the session's own generator is a learned one."""
+        from robogest.generators import make_generator
+
+        return make_generator("rhythm", **body.options({}))
 
     def _start(
         self, h: UtteranceHandle, traj: Any, fill: Callable[[AudioOut], None] | None, sr: int, asked: int
@@ -510,6 +686,7 @@ class Robot:
             h._add("audio_start", played=played)
 
         with self._say_lock:  # an interrupt now waits until this play is in the loop, where it stops it
+            self._preparing.discard(h)
             if self._interrupts != asked:
                 out.stop()
                 h._abandon("interrupt")
@@ -533,6 +710,9 @@ class Robot:
         """The caller holds ``_say_lock``: utterances asked for so far are not started (:meth:`_start`), the audio
         stops, and every unfinished stream is interrupted (lock order: ``_say_lock``, then a stream's ``_state``)."""
         self._interrupts += 1
+        for h in list(self._preparing):  # done now: whoever awaits a barged-in reply hears of it at once
+            h._abandon("interrupt")
+        self._preparing.clear()
         self._replace_audio(None)
         for st in list(self._streams):
             st._interrupt()
@@ -607,7 +787,7 @@ class StreamUtterance:
     too, and is raised by the next ``feed``, ``close`` or ``wait``.
     """
 
-    def __init__(self, robot: Robot, sample_rate: int, lookahead_s: float) -> None:
+    def __init__(self, robot: Robot, sample_rate: int, lookahead_s: float, generator: Any = None) -> None:
         from robogest.live.planner import StreamingPlanner
         from robogest.speech.stream import SpeechStream, pcm_to_float
 
@@ -615,7 +795,8 @@ class StreamUtterance:
         self.sample_rate = sample_rate
         self._pcm = pcm_to_float
         self.speech = SpeechStream(sample_rate, lookahead_s=lookahead_s)
-        self.planner = StreamingPlanner(robot.config, robot._rhythm, robot._ik, self.speech, seed=robot.seed)
+        gen = robot._rhythm if generator is None else generator
+        self.planner = StreamingPlanner(robot.config, gen, robot._ik, self.speech, seed=robot.seed)
         self.handle = UtteranceHandle("stream")
         self.handle.trajectory = self.planner.feed
         self._out = AudioOut(robot._sd, sample_rate)

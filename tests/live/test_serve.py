@@ -145,6 +145,30 @@ def test_say_stream_and_interrupt_push_events(server):
         assert "done" not in _until_event(ws, acc["utterance"], "interrupted")
 
 
+def test_say_and_stream_start_take_per_call_body_language_and_name_a_bad_field(server):
+    _, url = server
+    with _client(url) as ws:
+        _recv(ws, "hello")
+        for bad, match in [
+            ({"type": "say", "text": "Hi.", "amount": 5}, 'say: "amount" must be a number within [0, 2]'),
+            ({"type": "say", "text": "Hi.", "style": "wild"}, "say: \"style\" 'wild' is not one of calm"),
+            ({"type": "say", "text": "Hi.", "style": "calm", "amount": 1}, '"style" or "amount", not both'),
+            ({"type": "stream_start", "gestures": 3}, 'stream_start: "gestures" must be'),
+            ({"type": "stream_start", "gestures": "/no/such/units"}, '"gestures" /no/such/units: no such folder'),
+        ]:
+            ws.send(json.dumps(bad))
+            assert match in _recv(ws, "error")["message"]
+        ws.send(json.dumps({"type": "say", "audio": "/no/such/speech.wav", "id": 7}))  # fails while prepared
+        assert "/no/such/speech.wav" in _recv(ws, "error")["message"]
+        ws.send(json.dumps({"type": "say", "text": "Calm now.", "style": "calm", "gestures": "none", "id": "c"}))
+        acc = _recv(ws, "accepted")
+        assert acc["id"] == "c" and "done" in _until_event(ws, acc["utterance"], "done")
+        ws.send(json.dumps({"type": "stream_start", "sample_rate": 16000, "amount": 0.5}))
+        acc = _recv(ws, "accepted")
+        ws.send(json.dumps({"type": "stream_end"}))
+        _until_event(ws, acc["utterance"], "interrupted")  # no speech came: nothing to play
+
+
 def test_a_long_say_holds_another_clients_short_one_no_longer_than_it_plays(server):
     """Says are queued per client and served in turn: client A's second long say comes after B's short one, which
     waits only for the one playing (utterance ids are given in the order says start)."""
@@ -251,6 +275,7 @@ def test_sigterm_ends_the_server_at_rest_with_torque_off(server):
     assert proc.wait(60) == 143
     err = proc.stderr.read()
     assert "SIGTERM" in err and "Traceback" not in err and "connection handler failed" not in err
+    assert "leak" not in err  # nanobind's report of native objects alive at interpreter teardown
     # the log (serve's default level is info): connections with address and origin, requests, refusals, interrupts
     assert "connected (origin http://localhost:3000)" in err and "connected (origin None)" in err
     assert "say accepted as utterance" in err and "stream accepted as utterance" in err

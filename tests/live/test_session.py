@@ -346,7 +346,8 @@ def test_a_replaced_stream_that_fails_later_leaves_the_utterance_playing_now_alo
         deadline = time.monotonic() + 30
         while s.handle.event("first_goal") is None and time.monotonic() < deadline:
             time.sleep(0.01)
-        h = robot.say("Now this.", wait=False)  # replaces the stream's motion
+        h = robot.say("Now this.", wait=False)  # replaces the stream's motion once prepared (in the worker)
+        assert h.wait_started(60) and h._play is not None
 
         def broken():
             raise RuntimeError("planner bug (simulated)")

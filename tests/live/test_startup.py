@@ -24,3 +24,13 @@ def test_import_robogest_is_light_and_names_resolve_lazily():
 
     assert "Robot" in robogest.__all__ and callable(robogest.list_robots)
     assert "humanoid_xl430" in robogest.list_robots()
+
+
+def test_dir_lists_the_public_names_without_loading_them():
+    assert _loaded_after("import robogest; dir(robogest)") == set()
+    import robogest
+
+    names = dir(robogest)
+    assert {"Robot", "UtteranceHandle", "AsyncRobot", "aio", "list_robots"} <= set(names)
+    assert "lazy_getattr" not in names and "TYPE_CHECKING" not in names
+    assert all(hasattr(robogest, n) for n in robogest.__all__)
