@@ -13,6 +13,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from robogest._version import __version__ as __version__
     from robogest.errors import RobogestError
     from robogest.live import Robot, UtteranceHandle
     from robogest.robot.registry import find_robot, list_robots
@@ -21,6 +22,7 @@ if TYPE_CHECKING:
 from robogest._lazy import lazy_getattr
 
 _LAZY = {
+    "__version__": "robogest._version",
     "Robot": "robogest.live",
     "UtteranceHandle": "robogest.live",
     "RobogestError": "robogest.errors",
