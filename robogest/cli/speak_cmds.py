@@ -101,7 +101,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "a trajectory saved with --save is re-checked against the robot's limits and played as is.",
     )
     q.add_argument("motion", metavar="MOTION", help=".bvh, SMPL-X .npz, or a trajectory .npz from --save")
-    q.add_argument("--audio", metavar="FILE", help="audio to play/mux with the motion")
+    q.add_argument(
+        "--audio",
+        metavar="FILE",
+        help="audio to play/mux with the motion (--video without it: the audio the trajectory names, else the "
+        ".wav of MOTION's name beside it)",
+    )
     _add_output_args(q)
     q.set_defaults(func=run_play)
 
