@@ -1,7 +1,8 @@
 # Two commands do all set-up on a fresh machine (Python >= 3.10 with venv):
-#   make demo   create .venv, install robogest, speak a sentence on the simulated humanoid
+#   make demo   create .venv, install robogest with what the demo needs (the video and plot extras), speak a
+#               sentence on the simulated humanoid
 #               -> out/demo.mp4 (video with the speech audio), out/demo.npz (command trajectory), out/demo.png
-#   make test   create .venv with the dev extras and run the test suite (what CI runs)
+#   make test   create .venv with everything (the dev extras include all others) and run the test suite (what CI runs)
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -19,14 +20,18 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install -q -e .
 	touch $@
 
+$(VENV)/.installed-demo: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install -q -e '.[video,plot]'
+	touch $@ $(VENV)/.installed
+
 $(VENV)/.installed-dev: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install -q -e '.[dev]'
-	touch $@ $(VENV)/.installed
+	touch $@ $(VENV)/.installed $(VENV)/.installed-demo
 
 install: $(VENV)/.installed
 install-dev: $(VENV)/.installed-dev
 
-demo: $(VENV)/.installed
+demo: $(VENV)/.installed-demo
 	$(BIN)/robogest speak "$(DEMO_TEXT)" --save out/demo.npz --video out/demo.mp4 --plot out/demo.png
 
 test: $(VENV)/.installed-dev

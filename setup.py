@@ -27,5 +27,9 @@ def asset_packages() -> list[str]:
 setup(
     packages=[*find_packages(include=["robogest*"]), *asset_packages()],
     package_dir=ASSETS,
-    package_data={"robogest.generators": ["gestures/*.yaml"], **{name: ["*"] for name in asset_packages()}},
+    package_data={
+        "robogest": ["py.typed"],
+        "robogest.generators": ["gestures/*.yaml"],
+        **{name: ["*"] for name in asset_packages()},
+    },
 )

@@ -15,6 +15,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from robogest._version import __version__ as __version__
     from robogest.aio import AsyncRobot, AsyncStream, AsyncUtterance
     from robogest.errors import RobogestError
     from robogest.live import Robot, StreamUtterance, UtteranceHandle
@@ -24,6 +25,7 @@ if TYPE_CHECKING:
 from robogest._lazy import lazy_getattr
 
 _LAZY = {
+    "__version__": "robogest._version",
     "Robot": "robogest.live",
     "UtteranceHandle": "robogest.live",
     "StreamUtterance": "robogest.live",

@@ -19,7 +19,9 @@ def open_output() -> tuple[Any, str]:
     try:
         import sounddevice as sd
     except ImportError:
-        return None, "sounddevice is not installed (pip install 'robogest[audio]')"
+        from robogest.extras import install_command
+
+        return None, f"sounddevice is not installed ({install_command('audio')})"
     except OSError as e:  # sounddevice is there but its C library is not: installing sounddevice again won't help
         return None, f"the PortAudio library is missing ({e}); install it (Debian/Ubuntu: apt install libportaudio2)"
     try:

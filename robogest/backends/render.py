@@ -410,9 +410,8 @@ def render_png(
     Path
         The written file.
     """
-    from matplotlib import image as mpimg
-
     from robogest.backends.mujoco_sim import load_sim_model
+    from robogest.backends.png import write_png
 
     sim = load_sim_model(robot)
     q = robot.rest_q_rad if q_rad is None else np.asarray(q_rad, dtype=float)
@@ -428,5 +427,5 @@ def render_png(
         renderer.close()
     path = Path(path)
     with atomic_path(path, ".png") as tmp:
-        mpimg.imsave(tmp, rgb, format="png")
+        write_png(tmp, rgb)
     return path

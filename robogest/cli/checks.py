@@ -127,3 +127,24 @@ def check_outputs(
     for flag, value in (folders or {}).items():
         if value is not None:
             check_output_dir(value, flag)
+
+
+#: Parser default listing ``(flag, dest, extra)``: options that need a pip extra (see :func:`needs_extra`).
+_EXTRAS_KEY = "_needs_extras"
+
+
+def needs_extra(p: argparse.ArgumentParser, flag: str, extra: str) -> None:
+    """Mark option ``flag`` of ``p`` as needing pip extra ``extra``; :func:`require_extras` checks it."""
+    dest = flag.lstrip("-").replace("-", "_")
+    p.set_defaults(**{_EXTRAS_KEY: [*(p.get_default(_EXTRAS_KEY) or ()), (flag, dest, extra)]})
+
+
+def require_extras(args: argparse.Namespace) -> None:
+    """Right after parsing, before any work: each given option marked by :func:`needs_extra` has its extra
+    installed, else :class:`~robogest.errors.MissingDependencyError` (exit 6) with the pip command."""
+    given = [(flag, extra) for flag, dest, extra in getattr(args, _EXTRAS_KEY, ()) if getattr(args, dest, None)]
+    if given:
+        from robogest.extras import require_extra
+
+        for flag, extra in given:
+            require_extra(extra, flag)

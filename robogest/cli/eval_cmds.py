@@ -38,7 +38,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--audio", metavar="PATH", help="speech audio file or folder (for beat sync and silences)")
     p.add_argument("--transcript", metavar="PATH", help="transcript file or folder for --audio")
     p.add_argument("--json", metavar="FILE", help="write all metrics as JSON (atomically)")
-    p.add_argument("--plots", metavar="DIR", help="write velocity histograms, PMB curves, trajectory plots")
+    p.add_argument(
+        "--plots", metavar="DIR", help="write velocity histograms, PMB curves, trajectory plots (needs the plot extra)"
+    )
+    checks.needs_extra(p, "--plots", "plot")
     p.add_argument(
         "--shifts",
         type=checks.number(2, 100_000, integer=True),

@@ -25,7 +25,7 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
-from robogest.cli.checks import OneLineParser
+from robogest.cli.checks import OneLineParser, require_extras
 from robogest.errors import RobogestError
 
 #: Subcommand modules under ``robogest.cli``; each defines ``register(subparsers) -> None`` and sets
@@ -62,13 +62,9 @@ class _VersionAction(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
 
     def __call__(self, parser: argparse.ArgumentParser, *args: object) -> None:
-        from importlib.metadata import PackageNotFoundError, version
+        from robogest import __version__
 
-        try:
-            v = version("robogest")
-        except PackageNotFoundError:  # run from a source tree that was never installed
-            v = "unknown (not installed)"
-        print(f"robogest {v}")
+        print(f"robogest {__version__}")
         parser.exit()
 
 
@@ -229,6 +225,7 @@ def _run(argv: Sequence[str] | None) -> int:
         return 2
     _configure_logging(getattr(args, "log_level", None) or getattr(args, "default_log_level", "warning"))
     try:
+        require_extras(args)  # a missing extra fails before any work
         with _terminate_like_ctrl_c():
             rc = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, inside the handler in main, not at interpreter exit

@@ -26,7 +26,7 @@ def add_parsers(sub: Any) -> None:
         type=Path,
         metavar="FILE",
         help="the robot's URDF, xacro (.xacro) or MJCF (.xml); meshes STL/OBJ/DAE in its folders (xacro and DAE "
-        "need: pip install 'robogest[import]')",
+        "need the import extra)",
     )
     p.add_argument(
         "--out",

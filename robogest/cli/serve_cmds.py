@@ -25,7 +25,7 @@ an error and the robot's session carries on. Logs (stderr): connections, request
 
 Streamed speech uses the default `rhythm` generator with a look-ahead of 0.25 s; learned generators
 (--generator with --checkpoint) are batch-only: they serve "say" messages only. Speech audio is played
-through sounddevice (pip install 'robogest[audio]') when an output device exists; otherwise the events
+through sounddevice (the audio extra) when an output device exists; otherwise the events
 carry the time each stretch of audio should start. Ctrl-C or SIGTERM: the robot glides to rest, torque off.
 """
 

@@ -55,12 +55,20 @@ def _add_output_args(p: argparse.ArgumentParser) -> None:
         "name without suffix (ROS 2 bag folder); times on the speech audio's clock",
     )
     p.add_argument(
-        "--video", metavar="FILE.mp4", help="render the simulated robot with the speech audio (sim; three-quarter view)"
+        "--video",
+        metavar="FILE.mp4",
+        help="render the simulated robot with the speech audio (sim; three-quarter view; needs the video extra)",
     )
     p.add_argument("--video-size", metavar="WxH", type=checks.frame_size,
                    help="video frame size in pixels, even numbers (default: 1280x720 with a GPU renderer, 640x360 "
                    "with a software one such as Mesa llvmpipe, where it renders near real time)")  # fmt: skip
-    p.add_argument("--plot", metavar="FILE.png", help="plot wrist trajectories, beats, silent spans, joint commands")
+    p.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="plot wrist trajectories, beats, silent spans, joint commands (needs the plot extra)",
+    )
+    checks.needs_extra(p, "--video", "video")
+    checks.needs_extra(p, "--plot", "plot")
     p.add_argument("--realtime", action="store_true", help="run the simulation in real time (sim)")
     p.add_argument("--view", action="store_true", help="open the MuJoCo viewer (needs a display)")
 
@@ -97,7 +105,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "a trajectory saved with --save is re-checked against the robot's limits and played as is.",
     )
     q.add_argument("motion", metavar="MOTION", help=".bvh, SMPL-X .npz, or a trajectory .npz from --save")
-    q.add_argument("--audio", metavar="FILE", help="audio to play/mux with the motion")
+    q.add_argument(
+        "--audio",
+        metavar="FILE",
+        help="audio to play/mux with the motion (--video without it: the audio the trajectory names, else the "
+        ".wav of MOTION's name beside it)",
+    )
     _add_output_args(q)
     q.set_defaults(func=run_play)
 
@@ -281,18 +294,19 @@ def run_play(args: argparse.Namespace) -> int:
     path = Path(args.motion)
     if not path.is_file():
         raise InputError(f"{path}: no such motion file")
-    _check_paths(args, {"MOTION": args.motion, "--audio": args.audio})
+    is_traj = path.suffix == ".npz" and "q_rad" in npz_keys(path)
+    audio_file, audio_line = _play_audio(args, path, is_traj)
+    _check_paths(args, {"MOTION": args.motion, "--audio": audio_file})
     _check_export(args)
     robot = find_robot(args.robot)
     require_followable(robot)
     backend = _hardware_backend(args, robot)
     audio, sr = None, 16000
-    if args.audio:
+    if audio_file:
         from robogest.speech import load_speech
 
-        sp = load_speech(args.audio)
+        sp = load_speech(audio_file)
         audio, sr = sp.audio, sp.sr
-    is_traj = path.suffix == ".npz" and "q_rad" in npz_keys(path)
     if is_traj:
         traj = Trajectory.load(path)
         check_matches(traj, robot, str(path))  # joints, limits and rest pose must be the robot's
@@ -310,6 +324,32 @@ def run_play(args: argparse.Namespace) -> int:
         motion = load_motion(path)
         traj, _, _ = motion_to_trajectory(motion, robot, fps=args.fps, audio_path=args.audio or "")
     lines = [f"motion: {path} -> {traj.n_frames} commands at {traj.fps:g} Hz for {robot.name}"]
-    _report(lines)
+    _report([*lines, *([audio_line] if audio_line else [])])
     _finish(args, robot, traj, audio, sr, backend)
     return 0
+
+
+def _play_audio(args: argparse.Namespace, motion: Path, is_traj: bool) -> tuple[str | None, str]:
+    """The audio file ``play`` uses, and (with ``--video``) a line saying which one or why the video is silent.
+
+    ``--audio`` wins; with ``--video``, else the audio the trajectory names (``speak --save`` records it: first its
+    file name beside MOTION, then the name as recorded), else the ``.wav`` of MOTION's name beside it.
+    """
+    if args.audio or not args.video:
+        return args.audio, ""
+    named = ""
+    if is_traj:
+        from robogest.fileio import read_npz
+
+        value = read_npz(motion, keys=["audio_path"]).get("audio_path")
+        named = str(value) if value is not None and value.dtype.kind == "U" and value.ndim == 0 else ""
+    if named:
+        tried = [motion.parent / Path(named).name, Path(named)]  # speak --save writes it beside the trajectory
+        found = next((p for p in tried if p.is_file()), None)
+        if found is not None:
+            return str(found), f"audio: {found} (named in the trajectory)"
+    beside = motion.with_suffix(".wav")
+    if beside.is_file() and beside != motion:
+        return str(beside), f"audio: {beside} (beside {motion.name})"
+    why = f"the trajectory names {named}, which is missing," if named else f"{motion.name} names no audio"
+    return None, f"video: silent: {why} and there is no {beside}; give --audio FILE"

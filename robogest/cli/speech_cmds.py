@@ -51,7 +51,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_gesture_args(g)
     g.add_argument("--checkpoint", metavar="FILE", help="trained weights for a learned generator")
-    g.add_argument("--plot", metavar="FILE.png", help="also plot wrist trajectories with beats and silent spans")
+    g.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="also plot wrist trajectories with beats and silent spans (needs the plot extra)",
+    )
+    checks.needs_extra(g, "--plot", "plot")
     g.set_defaults(func=run_generate)
 
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from robogest.errors import InputError, MissingDependencyError
+from robogest.extras import install_command
 from robogest.fileio import read_text_capped
 
 #: Servo model names a description may mention (links, joints, meshes, transmissions), per bus family.
@@ -34,7 +35,6 @@ SERVO_WORDS = {
 }
 #: How far above the description a ``package://NAME`` or ``$(find NAME)`` folder is searched.
 PACKAGE_LEVELS = 4
-IMPORT_EXTRA = "pip install 'robogest[import]'"
 
 
 @dataclass
@@ -126,7 +126,9 @@ def _confined_xacro(roots: list[Path], source: Path) -> Iterator[object]:
         import xacro
         from xacro import substitution_args
     except ImportError:
-        raise MissingDependencyError(f"{source}: reading xacro needs the import extra: {IMPORT_EXTRA}") from None
+        raise MissingDependencyError(
+            f"{source}: reading xacro needs the import extra: {install_command('import')}"
+        ) from None
     parse, find, load_yaml = xacro.parse, substitution_args._eval_find, xacro.load_yaml
 
     def confined_parse(inp, filename=None):

@@ -11,8 +11,9 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from robogest.errors import InputError, MissingDependencyError
+from robogest.extras import install_command
 from robogest.fileio import read_bytes_capped
-from robogest.importer.description import IMPORT_EXTRA, Description, confined, find_package
+from robogest.importer.description import Description, confined, find_package
 
 #: Formats MuJoCo reads itself; others are converted to STL at import.
 MUJOCO_MESHES = (".stl", ".obj", ".msh")
@@ -90,7 +91,9 @@ def convert(src: Path, dst: Path) -> None:
     try:
         import trimesh
     except ImportError:
-        raise MissingDependencyError(f"mesh {src.name}: converting {src.suffix} meshes needs {IMPORT_EXTRA}") from None
+        raise MissingDependencyError(
+            f"mesh {src.name}: converting {src.suffix} meshes needs the import extra: {install_command('import')}"
+        ) from None
     read_bytes_capped(src, MAX_MESH_BYTES, what="mesh")  # a regular file of a sane size, before trimesh opens it
     try:
         data = trimesh.load(str(src), force="mesh").export(file_type="stl")

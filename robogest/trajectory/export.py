@@ -89,8 +89,10 @@ def _rosbags():
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore
     except ImportError:
+        from robogest.extras import install_command
+
         raise MissingDependencyError(
-            "writing a ROS 2 bag needs the rosbags library: pip install 'robogest[ros]' (or export to .csv)"
+            f"writing a ROS 2 bag needs the rosbags library: {install_command('ros')} (or export to .csv)"
         ) from None
     return StoragePlugin, Writer, get_typestore(Stores.ROS2_HUMBLE)
 

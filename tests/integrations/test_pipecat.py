@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import importlib
 import os
+import re
 import subprocess
 import sys
 import time
@@ -120,7 +121,9 @@ def test_a_missing_pipecat_is_refused_with_the_install_line(monkeypatch):
                  "pipecat.processors.frame_processor"):  # fmt: skip
         monkeypatch.setitem(sys.modules, name, None)  # import of it fails as if not installed
     monkeypatch.delitem(sys.modules, "robogest.integrations.pipecat", raising=False)
-    with pytest.raises(MissingDependencyError, match=r"pip install 'robogest\[pipecat\]'"):
+    from robogest.extras import install_command
+
+    with pytest.raises(MissingDependencyError, match=re.escape(install_command("pipecat"))):
         importlib.import_module("robogest.integrations.pipecat")
     monkeypatch.delitem(sys.modules, "robogest.integrations.pipecat", raising=False)
 

@@ -1,11 +1,15 @@
-"""The wheel carries the robots: build it, install it outside the checkout, speak on the sim from a temp folder."""
+"""The wheel carries the robots and ``py.typed``: build it, install it outside the checkout, speak on the sim from a
+temp folder; a missing extra names the wheel to install it from."""
 
 from __future__ import annotations
 
+import json
 import os
+import re
 import shutil
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +39,11 @@ def test_installed_wheel_ships_robots_and_speaks(tmp_path):
     pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
     _run([*pip, "wheel", "--no-deps", "--no-build-isolation", "-w", str(tmp_path / "dist"), "./src"], cwd=tmp_path)
     (wheel,) = (tmp_path / "dist").glob("robogest-*.whl")
+    with zipfile.ZipFile(wheel) as zf:
+        assert "robogest/py.typed" in zf.namelist()
+        meta = zf.read(next(n for n in zf.namelist() if n.endswith(".dist-info/METADATA"))).decode()
+    core = [line for line in meta.splitlines() if line.startswith("Requires-Dist:") and "extra ==" not in line]
+    assert core and not [line for line in core if re.match(r"Requires-Dist: (av|matplotlib)\b", line)]
     site = tmp_path / "site"
     _run([*pip, "install", "--no-deps", "--no-compile", "--target", str(site), str(wheel)], cwd=tmp_path)
 
@@ -55,3 +64,13 @@ def test_installed_wheel_ships_robots_and_speaks(tmp_path):
     assert "sim tracking error" in spoken
     with np.load(work / "hi.npz") as z:
         assert str(z["robot"]) == "humanoid_xl430" and z["q_rad"].shape[1] == 11
+    assert _run([str(script), "--version"], cwd=work, env=env).stdout == f"robogest {wheel.name.split('-')[1]}\n"
+
+    # Without PyAV the installed copy names the wheel it came from (robogest is on no index).
+    from tests.packaging.test_extras import SHIM
+
+    cmd = [sys.executable, "-c", SHIM, json.dumps([["speak", "Hi.", "--video", "hi.mp4"]])]
+    res = subprocess.run(cmd, cwd=work, env=env, capture_output=True, text=True, timeout=300)
+    assert '"rcs": [6]' in res.stdout and not (work / "hi.mp4").exists()
+    assert "--video needs the video extra (av is not installed); install it: " in res.stderr
+    assert res.stderr.rstrip().endswith(f"pip install '{wheel}[video]'"), res.stderr

