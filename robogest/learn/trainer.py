@@ -86,9 +86,12 @@ class ModelSpec(Protocol):
 #:     before its step, under ``no_grad``; ``sync`` (:func:`robogest.learn.dist.sync_of`, None alone) makes the
 #:     change the same on every rank. Called on every rank for every batch, so its collectives always match.
 #: ``make_windows`` may also take ``cache_dir``: the run's cache folder, for window parts worth keeping across runs.
+#: ``warm_cache(takes, config, cache_dir, rank, world_size) -> None``
+#:     Under torchrun, before the windows are cut on each node's first rank: fill ``cache_dir`` for this rank's
+#:     share of ``takes``, so the slow per-take work is spread over all ranks instead of done by one.
 OPTIONAL_SPEC_METHODS = (
     "fit_config", "make_windows", "make_optimizers", "train_step", "plan_epochs", "validation_loss",
-    "validation_length", "first_best_epoch", "stage_name", "before_step",
+    "validation_length", "first_best_epoch", "stage_name", "before_step", "warm_cache",
 )  # fmt: skip
 
 
@@ -462,6 +465,10 @@ def _windows(spec, mcfg, train_takes, val_takes, norm, seq, cfg: TrainConfig, v_
         shutil.rmtree(store, ignore_errors=True)  # a crashed run's leftovers
         return read()
 
+    warm = getattr(spec, "warm_cache", None)
+    if warm is not None and kw and info.world_size > 1:  # every rank fills the cache for its share of the takes
+        warm([*train_takes, *val_takes], mcfg, kw["cache_dir"], info.rank, info.world_size)
+        D.barrier(info)
     arrays = D.builder_first(info, build, read)
     D.barrier(info)  # every rank has mapped them
     if info.local_rank == 0:

@@ -4,7 +4,8 @@ Run as ``torchrun ... ddp_probe.py train ARGS``: the real CLI runs unchanged; wr
 split, checkpoint writer and evaluation, and around the feature computation, write ``$PROBE_OUT/rank{RANK}.json``:
 the window indices of every batch, the checkpoints written, a checksum of the weights each epoch, per-tensor sums of
 the whole state (weights and buffers) each epoch, the takes whose features this rank computed and, for the rhythmic
-model, whether each contrastive loss (audio-encoder stage) saw any word frame.
+model, whether each contrastive loss (audio-encoder stage) saw any word frame and the takes' audio it time-scaled
+(blocks per take).
 """
 
 from __future__ import annotations
@@ -19,7 +20,15 @@ from robogest.data import datasets
 from robogest.learn import trainer
 
 RANK = int(os.environ["RANK"])
-RECORD: dict[str, list] = {"epochs": [], "saved": [], "weights": [], "state": [], "computed": [], "words": []}
+RECORD: dict[str, list] = {
+    "epochs": [],
+    "saved": [],
+    "weights": [],
+    "state": [],
+    "computed": [],
+    "words": [],
+    "tsm": [],
+}
 
 
 def _wrap(module, name: str, before) -> None:
@@ -44,10 +53,12 @@ _wrap(trainer, "_evaluate", lambda _, spec, model, *a: RECORD["state"].append(
 _wrap(datasets, "compute_take", lambda _, files, *a: RECORD["computed"].append(files.name))
 
 try:
+    from robogest.generators.learned.rhythmic import cache as rhythmic_cache
     from robogest.generators.learned.rhythmic import model as rhythmic_model
 except ImportError:  # no torch: nothing trains anyway
     pass
 else:
+    _wrap(rhythmic_cache, "tsm_mel_blocks", lambda out, *a: RECORD["tsm"].append(out.shape[0]))
     _wrap(rhythmic_model.RhythmicNet, "contrastive_loss", lambda _, net, text, layers, mask: RECORD["words"].append(
         bool(mask.any())
     ))  # fmt: skip

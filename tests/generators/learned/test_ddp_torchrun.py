@@ -59,7 +59,9 @@ def test_two_ranks_train_disjoint_shards_and_rank_0_alone_writes(dataset, tmp_pa
     assert ranks[0]["weights"] == pytest.approx(ranks[1]["weights"], rel=1e-6)  # replicas stay identical
     assert ranks[0]["weights"][0] != ranks[0]["weights"][1]  # ...and they trained
 
-    assert ranks[0]["saved"][:2] == ["last.pt", "best.pt"] and ranks[0]["saved"].count("last.pt") == 2
+    # last.pt every epoch; best.pt once an epoch may be it (not Gesticulator's pre-training epoch)
+    assert ranks[0]["saved"][0] == "last.pt" and ranks[0]["saved"].count("last.pt") == 2
+    assert "best.pt" in ranks[0]["saved"]
     assert ranks[1]["saved"] == []
     assert sorted(ranks[0]["computed"]) == ["take_000", "take_001", "take_002"] and ranks[1]["computed"] == []
     assert sorted(p.name for p in out.iterdir()) == ["best.pt", "history.json", "last.pt"]  # window files removed
@@ -108,7 +110,8 @@ def test_rhythmic_ranks_keep_identical_state_through_every_stage_and_a_rank_with
     same weights and buffers (codebook, its usage, the silent-lexeme counts), although the codebook is restarted
     from data and the ranks see different data; and audio-encoder steps where one rank's window has word frames
     and the other's has none finish (that rank's loss used to have no graph, so it skipped the gradient
-    all-reduce and the other rank waited for ever)."""
+    all-reduce and the other rank waited for ever). The takes' time-scaled audio blocks are made once, one take by
+    each rank, and kept in the cache folder."""
     out, probe = tmp_path / "out", tmp_path / "probe"
     probe.mkdir()
     sets = [a for k, v in RHYTHMIC.items() for a in ("--set", f"{k}={v}")]
@@ -133,4 +136,5 @@ def test_rhythmic_ranks_keep_identical_state_through_every_stage_and_a_rank_with
         assert not differ, (stage, differ)
     first, last = ranks[0]["state"][0], ranks[0]["state"][-1]
     assert first["vq.codebook"] != last["vq.codebook"] and last["lex_total"] > 0  # they did change
-    assert sorted(p.name for p in (tmp_path / "c" / "rhythmic-blocks").iterdir())  # blocks kept for the next run
+    assert len(list((tmp_path / "c" / "rhythmic-blocks").iterdir())) == 2  # blocks kept for the next run...
+    assert len(ranks[0]["tsm"]) == len(ranks[1]["tsm"]) == 1  # ...each take's made once, the ranks sharing the work

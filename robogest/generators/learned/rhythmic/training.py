@@ -118,6 +118,13 @@ class RhythmicSpec:
             per_take(), w, 1, k * f, k * config.n_pose, (w * k, f), (w * k, config.n_pose), store=store
         )
 
+    def warm_cache(self, takes, config: RhythmicConfig, cache_dir, rank: int, world_size: int) -> None:
+        """Beats and time-scaled blocks of takes ``rank``, ``rank + world_size``, ... into ``cache_dir``
+        (:func:`.cache.take_rhythm_blocks`): the ranks share the slow part of :meth:`make_windows`."""
+        for t in takes[rank::world_size]:
+            if t.audio_path is not None:
+                take_rhythm_blocks(t, config, cache_dir)
+
     def before_step(self, model, speech, poses, epoch: int, config: RhythmicConfig, sync=None) -> None:
         """Codebook upkeep and silent-lexeme statistics, the same on every rank (:meth:`RhythmicNet.before_step`)."""
         model.before_step(speech, poses, epoch, sync)
