@@ -8,6 +8,7 @@ import os
 
 from robogest.cli import checks
 from robogest.errors import InputError
+from robogest.learn.dist import DEFAULT_TIMEOUT_S  # no torch at import
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -50,7 +51,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--window-stride", type=checks.positive_int(1_000_000), default=5, help="frames between training windows"
     )
     p.add_argument("--text-encoder", default="minilm", help="text encoder name (default: %(default)s)")
-    p.add_argument("--cache-dir", metavar="DIR", help="feature cache (default: ~/.cache/robogest/features)")
+    p.add_argument(
+        "--cache-dir", metavar="DIR",
+        help="feature cache, reused across runs; the rhythmic model keeps its time-scaled audio blocks there too "
+        "(default: ~/.cache/robogest/features)",
+    )  # fmt: skip
+    p.add_argument(
+        "--dist-timeout-s", type=checks.number(1.0, 1e7), default=DEFAULT_TIMEOUT_S, metavar="S",
+        help="under torchrun: how long a rank waits for the others (e.g. while rank 0 builds the caches) before "
+        "the job fails (default: %(default)s)",
+    )  # fmt: skip
     p.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE", dest="options",
         help="model option, repeatable: a field of the model's config class (GesticulatorConfig, RhythmicConfig, "
@@ -99,6 +109,7 @@ def run(args: argparse.Namespace) -> int:
         text_encoder=args.text_encoder,
         text_encoder_kwargs=kwargs,
         cache_dir=args.cache_dir,
+        dist_timeout_s=args.dist_timeout_s,
         model_overrides=parse_options(args.options),
     )
     best = train(cfg, get_model_spec(args.model))

@@ -35,11 +35,19 @@ def pick_device(pref: str = "auto", local_rank: int = 0):  # -> torch.device
     return torch.device("cuda", local_rank % torch.cuda.device_count())
 
 
-def setup(device_pref: str = "auto"):  # -> tuple[DistInfo, torch.device]
+#: Default process-group timeout, s: long enough for rank 0 to build a large dataset's caches while the other
+#: ranks wait at a barrier (PyTorch's own default is 10 min for NCCL, 30 min for gloo).
+DEFAULT_TIMEOUT_S = 7200.0
+
+
+def setup(device_pref: str = "auto", timeout_s: float = DEFAULT_TIMEOUT_S):  # -> tuple[DistInfo, torch.device]
     """Initialise the process group when ``RANK`` and ``WORLD_SIZE`` are set (``torchrun``), else run alone.
 
-    The backend is NCCL on CUDA and gloo on CPU.
+    The backend is NCCL on CUDA and gloo on CPU. ``timeout_s``: how long a collective (a barrier included) waits
+    for the other ranks before the job fails.
     """
+    if not timeout_s > 0:
+        raise InputError(f"the process-group timeout must be > 0 s, got {timeout_s}; e.g. --dist-timeout-s 7200")
     torch = require_torch()
     if "RANK" not in os.environ or "WORLD_SIZE" not in os.environ:
         return DistInfo(), pick_device(device_pref)
@@ -51,7 +59,10 @@ def setup(device_pref: str = "auto"):  # -> tuple[DistInfo, torch.device]
     if not dist.is_initialized():
         os.environ.setdefault("MASTER_ADDR", "127.0.0.1")
         os.environ.setdefault("MASTER_PORT", "29500")
-        dist.init_process_group("nccl" if device.type == "cuda" else "gloo", rank=rank, world_size=world)
+        from datetime import timedelta
+
+        backend = "nccl" if device.type == "cuda" else "gloo"
+        dist.init_process_group(backend, rank=rank, world_size=world, timeout=timedelta(seconds=timeout_s))
     if device.type == "cuda":
         torch.cuda.set_device(device)
     return DistInfo(rank, world, local, True), device
@@ -86,6 +97,34 @@ def all_reduce_mean(values: list[float], info: DistInfo, device) -> list[float]:
     t = torch.tensor(values, dtype=torch.float64, device=device)
     dist.all_reduce(t)
     return (t / info.world_size).tolist()
+
+
+class Sync:
+    """In-place collectives over all ranks, for model state that changes outside gradient steps (a codebook)."""
+
+    def __init__(self, info: DistInfo) -> None:
+        self.info = info
+
+    @property
+    def is_main(self) -> bool:
+        return self.info.is_main
+
+    def all_reduce_sum_(self, t) -> None:
+        """``t`` becomes its sum over ranks, the same on every rank."""
+        import torch.distributed as dist
+
+        dist.all_reduce(t)
+
+    def broadcast_(self, t, src: int = 0) -> None:
+        """``t`` becomes rank ``src``'s."""
+        import torch.distributed as dist
+
+        dist.broadcast(t, src)
+
+
+def sync_of(info: DistInfo) -> Sync | None:
+    """A :class:`Sync` when several ranks run, else None (one process: nothing to agree on)."""
+    return Sync(info) if info.enabled and info.world_size > 1 else None
 
 
 def teardown(info: DistInfo) -> None:

@@ -81,9 +81,17 @@ class ModelSpec(Protocol):
 #:     Epochs before this one (0-based) never become ``best.pt`` (e.g. before every stage has trained).
 #: ``stage_name(epoch, config) -> str``
 #:     What the epoch trains, for the log line and ``history.json``.
+#: ``before_step(model, speech, poses, epoch, config, sync) -> None``
+#:     Update state that is not learned by gradient (e.g. a codebook's dead-code restarts) from this rank's batch,
+#:     before its step, under ``no_grad``; ``sync`` (:func:`robogest.learn.dist.sync_of`, None alone) makes the
+#:     change the same on every rank. Called on every rank for every batch, so its collectives always match.
+#: ``make_windows`` may also take ``cache_dir``: the run's cache folder, for window parts worth keeping across runs.
+#: ``warm_cache(takes, config, cache_dir, rank, world_size) -> None``
+#:     Under torchrun, before the windows are cut on each node's first rank: fill ``cache_dir`` for this rank's
+#:     share of ``takes``, so the slow per-take work is spread over all ranks instead of done by one.
 OPTIONAL_SPEC_METHODS = (
     "fit_config", "make_windows", "make_optimizers", "train_step", "plan_epochs", "validation_loss",
-    "validation_length", "first_best_epoch", "stage_name",
+    "validation_length", "first_best_epoch", "stage_name", "before_step", "warm_cache",
 )  # fmt: skip
 
 
@@ -115,7 +123,10 @@ class TrainConfig:
     text_encoder : str
         Registered text encoder; ``text_encoder_kwargs`` its arguments.
     cache_dir : str or None
-        Feature cache (default :func:`robogest.data.default_cache_dir`).
+        Feature cache (default :func:`robogest.data.default_cache_dir`); models that cut takes their own way keep
+        those cuts there too (the rhythmic model's time-scaled blocks).
+    dist_timeout_s : float
+        Under ``torchrun``: how long a rank waits for the others at a collective (e.g. while rank 0 builds caches).
     model_overrides : dict
         Fields of the model config to change (e.g. ``{"pretrain_epochs": 2}``).
     """
@@ -134,6 +145,7 @@ class TrainConfig:
     text_encoder: str = "minilm"
     text_encoder_kwargs: dict[str, Any] = field(default_factory=dict)
     cache_dir: str | None = None
+    dist_timeout_s: float = D.DEFAULT_TIMEOUT_S
     model_overrides: dict[str, Any] = field(default_factory=dict)
 
 
@@ -214,7 +226,7 @@ def train(cfg: TrainConfig, spec: ModelSpec, log: Callable[[str], None] | None =
     torch = require_torch()
     if spec.name != cfg.model:
         raise InputError(f"TrainConfig names model {cfg.model!r} but the spec is {spec.name!r}'s")
-    info, device = D.setup(cfg.device)
+    info, device = D.setup(cfg.device, cfg.dist_timeout_s)
     say = (log or (lambda s: print(s, flush=True))) if info.is_main else (lambda s: None)
     try:
         result = _train(cfg, spec, info, device, say, torch)
@@ -299,7 +311,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         )
     seq = spec.sequence_length(mcfg)
     v_len = spec.validation_length(mcfg) if hasattr(spec, "validation_length") else seq
-    xs, ys, vx, vy = _windows(spec, mcfg, train_takes, val_takes, norm, seq, cfg.window_stride, v_len, out, info)
+    xs, ys, vx, vy = _windows(spec, mcfg, train_takes, val_takes, norm, seq, cfg, v_len, info)
     if xs.shape[0] == 0:
         raise InputError(f"{cfg.data}: no training take is {seq} frames ({seq / fcfg.fps:.1f} s) long")
     say(f"{xs.shape[0]} training windows of {seq} frames, {vx.shape[0]} validation of {v_len}; device {device}")
@@ -357,6 +369,7 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
         return make_checkpoint(cfg.model, dataclasses.asdict(mcfg), fcfg.to_dict(), norm.to_dict(), state, train_state)
 
     bar = _progress(info.is_main)
+    before_step, sync = getattr(spec, "before_step", None), D.sync_of(info)
     for epoch in range(start, cfg.epochs):
         stage = spec.stage_name(epoch, mcfg) if hasattr(spec, "stage_name") else ""
         t_ep = time.perf_counter()
@@ -371,6 +384,9 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
             bar.start()
         for b in batches:
             xb, yb = torch.from_numpy(xs[b]).to(device), torch.from_numpy(ys[b]).to(device)  # read from disk
+            if before_step is not None:
+                with torch.no_grad():
+                    before_step(model, xb, yb, epoch, mcfg, sync)
             if custom_step:
                 stats = spec.train_step(net, optimizers, xb, yb, epoch, mcfg)
                 batch_loss = float(stats["loss"])
@@ -419,20 +435,27 @@ def _train(cfg: TrainConfig, spec: ModelSpec, info: D.DistInfo, device, say, tor
     return best_path
 
 
-def _windows(spec, mcfg, train_takes, val_takes, norm, seq, stride, v_len, out: Path, info: D.DistInfo):
+def _windows(spec, mcfg, train_takes, val_takes, norm, seq, cfg: TrainConfig, v_len, info: D.DistInfo):
     """Training ``(N, seq, ·)`` and validation ``(M, v_len, ·)`` windows, memory-mapped from files that each node's
     first rank writes under ``out`` and the other ranks map (:func:`robogest.learn.dist.builder_first`); the files
     are unlinked once every rank has mapped them, so they vanish with the run (as anonymous temporary files do).
     """
+    import inspect
     import shutil
     import socket
 
+    stride, out = cfg.window_stride, Path(cfg.out)
     store = out / f".windows-{socket.gethostname()}-{os.getpid() if not info.enabled else 'ddp'}"
     make = getattr(spec, "make_windows", None)
+    kw = {}
+    if make is not None and "cache_dir" in inspect.signature(make).parameters:
+        from robogest.data.datasets import default_cache_dir
+
+        kw["cache_dir"] = Path(cfg.cache_dir) if cfg.cache_dir else default_cache_dir()
 
     def cut(takes, length, step, name):
         if make is not None:
-            return make(takes, norm, mcfg, length, step, store=store / name)[:2]
+            return make(takes, norm, mcfg, length, step, store=store / name, **kw)[:2]
         return make_windows(takes, norm, length, step, store=store / name)[:2]
 
     def read():  # writes the windows where they are missing
@@ -442,6 +465,10 @@ def _windows(spec, mcfg, train_takes, val_takes, norm, seq, stride, v_len, out: 
         shutil.rmtree(store, ignore_errors=True)  # a crashed run's leftovers
         return read()
 
+    warm = getattr(spec, "warm_cache", None)
+    if warm is not None and kw and info.world_size > 1:  # every rank fills the cache for its share of the takes
+        warm([*train_takes, *val_takes], mcfg, kw["cache_dir"], info.rank, info.world_size)
+        D.barrier(info)
     arrays = D.builder_first(info, build, read)
     D.barrier(info)  # every rank has mapped them
     if info.local_rank == 0:

@@ -2,8 +2,10 @@
 
 Run as ``torchrun ... ddp_probe.py train ARGS``: the real CLI runs unchanged; wrappers around the trainer's batch
 split, checkpoint writer and evaluation, and around the feature computation, write ``$PROBE_OUT/rank{RANK}.json``:
-the window indices of every batch, the checkpoints written, a checksum of the weights each epoch and the takes whose
-features this rank computed.
+the window indices of every batch, the checkpoints written, a checksum of the weights each epoch, per-tensor sums of
+the whole state (weights and buffers) each epoch, the takes whose features this rank computed and, for the rhythmic
+model, whether each contrastive loss (audio-encoder stage) saw any word frame and the takes' audio it time-scaled
+(blocks per take).
 """
 
 from __future__ import annotations
@@ -18,7 +20,15 @@ from robogest.data import datasets
 from robogest.learn import trainer
 
 RANK = int(os.environ["RANK"])
-RECORD: dict[str, list] = {"epochs": [], "saved": [], "weights": [], "computed": []}
+RECORD: dict[str, list] = {
+    "epochs": [],
+    "saved": [],
+    "weights": [],
+    "state": [],
+    "computed": [],
+    "words": [],
+    "tsm": [],
+}
 
 
 def _wrap(module, name: str, before) -> None:
@@ -37,7 +47,21 @@ _wrap(trainer, "save_checkpoint", lambda _, ckpt, path: RECORD["saved"].append(P
 _wrap(trainer, "_evaluate", lambda _, spec, model, *a: RECORD["weights"].append(
     float(sum(p.detach().double().sum() for p in model.parameters()))
 ))  # fmt: skip
+_wrap(trainer, "_evaluate", lambda _, spec, model, *a: RECORD["state"].append(
+    {k: float(v.detach().double().sum()) for k, v in model.state_dict().items()}
+))  # fmt: skip
 _wrap(datasets, "compute_take", lambda _, files, *a: RECORD["computed"].append(files.name))
+
+try:
+    from robogest.generators.learned.rhythmic import cache as rhythmic_cache
+    from robogest.generators.learned.rhythmic import model as rhythmic_model
+except ImportError:  # no torch: nothing trains anyway
+    pass
+else:
+    _wrap(rhythmic_cache, "tsm_mel_blocks", lambda out, *a: RECORD["tsm"].append(out.shape[0]))
+    _wrap(rhythmic_model.RhythmicNet, "contrastive_loss", lambda _, net, text, layers, mask: RECORD["words"].append(
+        bool(mask.any())
+    ))  # fmt: skip
 
 if __name__ == "__main__":
     try:

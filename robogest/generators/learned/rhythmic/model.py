@@ -117,7 +117,7 @@ class RhythmicNet(nn.Module):
     def contrastive_loss(self, text, layers, mask):
         """Eq. 1: text anchors, ``a^L`` of the same frame positive, every layer of every frame of the block in the
         denominator. ``text`` ``(N, K, D)``, ``mask`` ``(N, K)`` frames inside words (where text exists)."""
-        if not any(p.requires_grad for p in self.audio.parameters()) or not bool(mask.any()):
+        if not any(p.requires_grad for p in self.audio.parameters()):
             return text.new_zeros(())
         n, k = text.shape[:2]
         t = F.normalize(self.proj_t(text), dim=-1)  # (N, K, c)
@@ -129,7 +129,9 @@ class RhythmicNet(nn.Module):
         target = ((n_l - 1) * k + torch.arange(k, device=text.device)).expand(n, k)  # a_k^L is at (L - 1) * K + k
         ce = F.cross_entropy(sim.reshape(n * k, -1), target.reshape(-1), reduction="none")  # (N * K,)
         m = mask.reshape(-1).float()
-        return (ce * m).sum() / m.sum()
+        # A batch without words gives 0 through every encoder weight: under DDP its backward still joins the
+        # gradient all-reduce, which a loss without a graph skipped (the other ranks then waited for ever).
+        return (ce * m).sum() / m.sum().clamp_min(1.0)
 
     # ---- lexicon helpers
     def silent_mask(self):
@@ -180,6 +182,31 @@ class RhythmicNet(nn.Module):
             per_window=w - 2,
         )
 
+    @torch.no_grad()
+    def before_step(self, speech, poses, epoch: int = 0, sync=None) -> None:
+        """The state that is not learned by gradient, updated from a training batch before its step: the lexicon's
+        codebook upkeep (:meth:`MotionVQ.maintain`, while the lexicon trains) and the silent-lexeme statistics.
+
+        Kept out of :meth:`forward` so that under DDP (``sync``: :class:`robogest.learn.dist.Sync`) every rank
+        makes the same change from statistics summed over ranks, and ranks keep identical weights and buffers.
+        """
+        c = self.config
+        stage = c.stage_at(epoch)
+        if stage == "encoder":
+            return  # the forward pass reads no lexeme
+        bl = self.segment(speech, poses)
+        e = self.vq.encode(bl.poses)  # (N, d_s)
+        if stage is None or stage == "lexicon":
+            self.vq.maintain(e, sync)
+        idx = self.vq.quantize(e)
+        n_s = c.lexicon_size
+        counts = torch.cat([torch.bincount(idx, minlength=n_s), torch.bincount(idx[bl.empty], minlength=n_s)])
+        counts = counts.float()  # (2 N_s,): all blocks, empty-word blocks
+        if sync is not None:
+            sync.all_reduce_sum_(counts)
+        self.lex_total.mul_(0.98).add_(counts[:n_s])
+        self.lex_empty.mul_(0.98).add_(counts[n_s:])
+
     def forward(self, speech, poses, epoch: int = 0):
         """Loss of trainer windows (see :meth:`segment`) at ``epoch``.
 
@@ -218,11 +245,6 @@ class RhythmicNet(nn.Module):
         else:
             with torch.no_grad():
                 idx = self.vq.quantize(self.vq.encode(bl.poses))
-        if self.training:  # silent-lexeme statistics of the current lexicon
-            with torch.no_grad():
-                n_s = c.lexicon_size
-                self.lex_total.mul_(0.98).add_(torch.bincount(idx, minlength=n_s).float())
-                self.lex_empty.mul_(0.98).add_(torch.bincount(idx[bl.empty], minlength=n_s).float())
         s_all = self.vq.codebook.detach()[idx]  # (N, d_s)
         p, i, n = bl.prev, bl.cur, bl.nxt
         samples = i.numel() > 0

@@ -14,6 +14,7 @@ nn = torch.nn
 F = torch.nn.functional
 
 from robogest.generators.learned.rhythmic.config import RhythmicConfig  # noqa: E402
+from robogest.learn.dist import Sync  # noqa: E402
 
 
 # --------------------------------------------------------------------------------------------------- audio encoder
@@ -98,10 +99,10 @@ class MotionVQ(nn.Module):
         return torch.cdist(e, self.codebook.detach()).argmin(dim=1)
 
     def forward(self, m):
-        """Eq. 3 loss, reconstruction error and indices of motion blocks ``(B, K, P)``."""
+        """Eq. 3 loss, reconstruction error and indices of motion blocks ``(B, K, P)``.
+
+        Changes no state: the codebook's upkeep is :meth:`maintain`, called by the trainer before the step."""
         e = self.encode(m)  # (B, d_s)
-        if self.training:
-            self._maintain(e.detach())
         idx = self.quantize(e)
         s = self.codebook[idx]  # (B, d_s)
         rec = self.decode(e + (s - e).detach())  # straight-through gradient to the encoder
@@ -110,20 +111,34 @@ class MotionVQ(nn.Module):
         return loss, rec_err.detach(), idx
 
     @torch.no_grad()
-    def _maintain(self, e) -> None:
-        """Data-dependent start and dead-code restart, so the small lexicon is actually used (not in eq. 3)."""
+    def maintain(self, e, sync: Sync | None = None) -> None:
+        """Data-dependent start and dead-code restart, so the small lexicon is actually used (not in eq. 3).
+
+        ``e`` ``(B, d_s)``: this batch's (this rank's shard's) encodings. Under DDP (``sync``) every rank makes the
+        same change: the usage EMA comes from code counts summed over ranks, and the vectors that (re)start codes
+        are rank 0's, broadcast. The same collectives run on every rank whatever its batch holds.
+        """
         n = self.codebook.shape[0]
         if not bool(self.initialised):
-            pick = torch.randint(0, e.shape[0], (n,), device=e.device)
-            self.codebook.data.copy_(e[pick] + 0.01 * torch.randn_like(e[pick]))
+            if sync is None or sync.is_main:
+                pick = torch.randint(0, e.shape[0], (n,), device=e.device)
+                self.codebook.data.copy_(e[pick] + 0.01 * torch.randn_like(e[pick]))
+            if sync is not None:
+                sync.broadcast_(self.codebook.data)
             self.initialised.fill_(True)
         idx = self.quantize(e)
-        hist = torch.bincount(idx, minlength=n).float() / max(e.shape[0], 1)
+        counts = torch.cat([torch.bincount(idx, minlength=n).float(), idx.new_full((1,), idx.numel()).float()])
+        if sync is not None:
+            sync.all_reduce_sum_(counts)  # (n + 1,): per-code counts and the number of encodings, all ranks
+        hist = counts[:n] / max(int(counts[n]), 1)
         self.usage.mul_(0.95).add_(0.05 * hist * n)
-        dead = self.usage < 0.02
+        dead = self.usage < 0.02  # the same on every rank: from the summed counts
         if dead.any():
-            pick = torch.randint(0, e.shape[0], (int(dead.sum()),), device=e.device)
-            self.codebook.data[dead] = e[pick] + 0.01 * torch.randn_like(e[pick])
+            if sync is None or sync.is_main:
+                pick = torch.randint(0, e.shape[0], (int(dead.sum()),), device=e.device)
+                self.codebook.data[dead] = e[pick] + 0.01 * torch.randn_like(e[pick])
+            if sync is not None:
+                sync.broadcast_(self.codebook.data)
             self.usage[dead] = 1.0
 
 

@@ -90,6 +90,7 @@ def take_blocks(
     audio: np.ndarray | None = None,
     poses: np.ndarray | None = None,
     beats_s: np.ndarray | None = None,
+    tsm_db: np.ndarray | None = None,
 ) -> TakeBlocks:
     """Cut a whole take or speech at its beats and normalise every clip to a block (§4.2): the one path from
     frames to blocks for training and inference.
@@ -112,6 +113,9 @@ def take_blocks(
     beats_s : ndarray [shape=(B,)], seconds, optional
         The speech's beats (``Speech.beats_s``); None: :func:`take_beats` of ``audio`` when given, else beats of
         the log-mel frames (:func:`take_rhythm`).
+    tsm_db : ndarray [shape=(C, K, n_mels)], dB, optional
+        The time-scaled audio blocks of these beats, already computed (:func:`.cache.take_rhythm_blocks`): used
+        instead of ``audio`` for the audio blocks.
     """
     m = c.n_mels
     mean, std = norm.acoustic_mean[:m], norm.acoustic_std[:m]
@@ -120,7 +124,9 @@ def take_blocks(
         beats_s = take_beats(audio, c)
     bounds, silent = take_rhythm(mel, mel_db, text, c, beats_s)
     k = c.block
-    if audio is not None and c.audio_tsm:
+    if tsm_db is not None:
+        mel_blocks = (tsm_db - mean) / std
+    elif audio is not None and c.audio_tsm:
         mel_blocks = (tsm_mel_blocks(audio, c.audio_sr, bounds, c.fps, k, m, c.mel_window_s) - mean) / std
     else:
         mel_blocks = normalize_clips(mel, bounds, k)

@@ -12,10 +12,11 @@ from robogest.data.datasets import speaker_key
 from robogest.data.features import FeatureConfig
 from robogest.data.prep import slice_windows
 from robogest.errors import InputError
+from robogest.generators.learned.rhythmic.cache import take_rhythm_blocks
 from robogest.generators.learned.rhythmic.config import STAGES, RhythmicConfig
 from robogest.generators.learned.rhythmic.model import RhythmicNet
 from robogest.generators.learned.rhythmic.networks import AUDIO_ENCODERS
-from robogest.generators.learned.rhythmic.take import take_beats, take_blocks
+from robogest.generators.learned.rhythmic.take import take_blocks
 from robogest.learn import config_with_overrides
 
 
@@ -77,13 +78,14 @@ class RhythmicSpec:
     def sequence_length(self, config: RhythmicConfig) -> int:
         return config.window_blocks * config.block
 
-    def make_windows(self, takes, norm, config: RhythmicConfig, length: int, stride: int, store=None):
+    def make_windows(self, takes, norm, config: RhythmicConfig, length: int, stride: int, store=None, cache_dir=None):
         """Windows of ``length // K`` consecutive beat blocks of each whole take (:func:`take_blocks`).
 
         Beats and silent blocks are found once on the whole take, as at run time on the whole speech. The audio
         blocks come from each take's recording, time-scaled and re-analysed (a take without ``audio_path``: from
         its log-mel frames). Consecutive windows start about ``stride`` frames apart (``stride`` over the take's
-        mean clip length, in blocks). ``store``: :func:`slice_windows`.
+        mean clip length, in blocks). ``store``: :func:`slice_windows`. ``cache_dir``: where each take's beats and
+        time-scaled audio blocks are kept for later runs (:func:`.cache.take_rhythm_blocks`; None: not kept).
 
         Returns
         -------
@@ -101,10 +103,10 @@ class RhythmicSpec:
 
         def per_take():  # one take's blocks at a time: (index, (C, K * F), (C, K * P), stride in blocks)
             for i, t in enumerate(takes):
-                audio = t.read_audio(config.audio_sr) if t.audio_path is not None else None
-                beats = take_beats(audio, config) if audio is not None else None  # the speech front-end's rule
-                tsm = audio if config.audio_tsm else None
-                tb = take_blocks(t.acoustic[:, :m], t.text, norm, config, tsm, t.poses, beats)
+                beats, tsm_db = None, None  # no recording: beats and blocks of the log-mel frames
+                if t.audio_path is not None:  # beats by the speech front-end's rule, blocks time-scaled
+                    beats, tsm_db = take_rhythm_blocks(t, config, cache_dir)
+                tb = take_blocks(t.acoustic[:, :m], t.text, norm, config, None, t.poses, beats, tsm_db)
                 n_c = tb.silent.shape[0]
                 flag = np.broadcast_to(tb.silent[:, None, None], (n_c, k, 1))
                 spk = np.full((n_c, k, 1), table.get(speaker_key(t.name), 0), np.float32)  # unseen speaker -> 0
@@ -115,6 +117,17 @@ class RhythmicSpec:
         return slice_windows(
             per_take(), w, 1, k * f, k * config.n_pose, (w * k, f), (w * k, config.n_pose), store=store
         )
+
+    def warm_cache(self, takes, config: RhythmicConfig, cache_dir, rank: int, world_size: int) -> None:
+        """Beats and time-scaled blocks of takes ``rank``, ``rank + world_size``, ... into ``cache_dir``
+        (:func:`.cache.take_rhythm_blocks`): the ranks share the slow part of :meth:`make_windows`."""
+        for t in takes[rank::world_size]:
+            if t.audio_path is not None:
+                take_rhythm_blocks(t, config, cache_dir)
+
+    def before_step(self, model, speech, poses, epoch: int, config: RhythmicConfig, sync=None) -> None:
+        """Codebook upkeep and silent-lexeme statistics, the same on every rank (:meth:`RhythmicNet.before_step`)."""
+        model.before_step(speech, poses, epoch, sync)
 
     def loss(self, model, speech, poses, epoch: int, config: RhythmicConfig):
         return model(speech, poses, epoch)  # through the (possibly DDP) wrapper's forward
