@@ -71,8 +71,8 @@ class _Chooser:
         """The first beat free on ``unit``'s channel within word ``k`` (from 0.1 s before it starts)."""
         w, ch = self.words[k], self.rep.units[unit].channel
         near = np.where((self.beats >= w.start_s - 0.1) & (self.beats <= w.end_s))[0]
-        near = [int(i) for i in near if (int(i), ch) not in self.taken]
-        return near[0] if near else None
+        free = [int(i) for i in near if (int(i), ch) not in self.taken]
+        return free[0] if free else None
 
     def clashes(self, t: float, unit: str) -> bool:
         """Whether ``unit`` at ``t`` s comes too close to an event on its channel (or repeats the unit)."""
