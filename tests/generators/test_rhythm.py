@@ -502,7 +502,7 @@ def test_a_live_plan_speeds_its_drift_up_only_where_the_speed_up_comes_after_the
 def test_the_wrist_path_cache_stays_bounded_and_changes_nothing(monkeypatch):
     """A live session runs for hours and its late strokes start from any held pose: the cache is capped, and an
     evicted entry computed again gives the same motion."""
-    import robogest.generators.rhythm as rhythm
+    from robogest.generators.rhythm import timeline as rhythm  # the module whose cache size the generator reads
 
     sp = build_speech(8.0, list(np.arange(0.6, 7.5, 0.3)), [])
     unbounded = RhythmGenerator()
