@@ -294,12 +294,14 @@ def run_play(args: argparse.Namespace) -> int:
     path = Path(args.motion)
     if not path.is_file():
         raise InputError(f"{path}: no such motion file")
-    is_traj = path.suffix == ".npz" and "q_rad" in npz_keys(path)
-    audio_file, audio_line = _play_audio(args, path, is_traj)
-    _check_paths(args, {"MOTION": args.motion, "--audio": audio_file})
+    _check_paths(args, {"MOTION": args.motion, "--audio": args.audio})
     _check_export(args)
     robot = find_robot(args.robot)
-    require_followable(robot)
+    require_followable(robot)  # before the motion file is read: a robot that cannot follow is refused first
+    is_traj = path.suffix == ".npz" and "q_rad" in npz_keys(path)
+    audio_file, audio_line = _play_audio(args, path, is_traj)
+    if audio_file != args.audio:
+        _check_paths(args, {"MOTION": args.motion, "--audio": audio_file})
     backend = _hardware_backend(args, robot)
     audio, sr = None, 16000
     if audio_file:
