@@ -62,9 +62,10 @@ def load_sim_model(robot: RobotConfig) -> SimModel:
     ------
     ConfigError
         The MJCF does not compile, or does not do what the YAML commands
-        (:func:`~robogest.robot.validate.sim_mapping_problems`).
+        (:func:`~robogest.robot.problems.sim_mapping_problems`).
     """
-    from robogest.robot.validate import joint_actuators, load_mjcf, sim_mapping_problems, summary
+    from robogest.robot.mjcf import joint_actuators, load_mjcf
+    from robogest.robot.problems import sim_mapping_problems, summary
 
     where = robot.path or robot.name
     model = load_mjcf(robot)
