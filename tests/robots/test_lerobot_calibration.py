@@ -141,12 +141,12 @@ def test_a_refused_calibration_keeps_a_good_copy(tmp_path, so101_copy):
 
 
 def test_a_copy_that_would_not_load_is_named_as_the_copy_not_a_temporary_file(tmp_path, so101_copy, monkeypatch):
-    import robogest.tools.lerobot_calibration as lc
+    import robogest.robot.yaml_edit as ye
 
     def refuse(path):
         raise ConfigError(f"{path}: key joints[0]: made up")
 
-    monkeypatch.setattr(lc, "load_robot_config", refuse)
+    monkeypatch.setattr(ye, "load_robot_config", refuse)
     out = tmp_path / "copy.yaml"
     with pytest.raises(ConfigError, match=r"follower\.json: the calibrated copy would not load: .*copy\.yaml: key "
                                           r"joints\[0\]: made up; nothing written") as e:  # fmt: skip
