@@ -375,11 +375,7 @@ def _for_robot(trajectory: Trajectory, robot: RobotConfig, hold_until_s: float) 
         q = np.vstack([q, np.repeat(q[-1:], extra, axis=0)])
     silent = np.zeros(len(t), dtype=bool)
     silent[: trajectory.n_frames] = trajectory.silent[: trajectory.n_frames]
-    return Trajectory(
-        t_s=t, q_rad=q, joint_names=robot.joint_names, q_min_rad=robot.q_min_rad, q_max_rad=robot.q_max_rad,
-        v_max_rad_s=robot.v_max_rad_s, a_max_rad_s2=robot.a_max_rad_s2, rest_q_rad=robot.rest_q_rad,
-        silent=silent, audio_path=trajectory.audio_path, robot=robot.name,
-    )  # fmt: skip
+    return Trajectory.for_robot(robot, q, t_s=t, silent=silent, audio_path=trajectory.audio_path)
 
 
 class _VideoObserver:
