@@ -8,6 +8,7 @@ docs/pipeline.md; a package may import from packages in lower layers only, never
 from __future__ import annotations
 
 import ast
+import re
 from functools import cache
 from pathlib import Path
 
@@ -109,6 +110,19 @@ def test_every_package_has_a_layer():
 def test_imports_flow_down():
     bad = _violations()
     assert not bad, "upward or sideways imports (move the code down, or call it from above):\n" + "\n".join(bad)
+
+
+def test_the_documented_layers_are_these():
+    """docs/pipeline.md's layer table names the same packages in the same layers."""
+    known = set().union(*LAYERS)
+    text = (ROOT.parent / "docs" / "pipeline.md").read_text()
+    rows = re.findall(r"^\| (\d+) \| (.*) \|$", text, flags=re.M)
+    documented = [
+        {n.replace("robogest/__init__.py", "robogest") for n in re.findall(r"`([\w/.]+)`", row)} & known
+        for _, row in rows
+    ]
+    assert [int(k) for k, _ in rows] == list(range(len(LAYERS)))
+    assert documented == LAYERS
 
 
 def test_exceptions_are_still_needed():
