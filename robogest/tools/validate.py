@@ -20,7 +20,6 @@ from pathlib import Path
 
 import numpy as np
 
-from robogest.backends.servo_check import servo_problems
 from robogest.errors import ConfigError
 from robogest.fileio import load_yaml, read_text_capped
 from robogest.robot.config import RobotConfig
@@ -50,6 +49,8 @@ def validate(name_or_path: str | Path) -> list[Problem]:
 
 def validate_robot(robot: RobotConfig, check_reach: bool = True) -> list[Problem]:
     """All problems of a loaded robot (empty list: it is consistent and safe to play)."""
+    from robogest.backends.servo_check import servo_problems  # the backends load their servo tables on use
+
     yml = robot.path or Path(f"{robot.name}.yaml")
     mjcf = robot.model_path
     try:
