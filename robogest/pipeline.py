@@ -99,19 +99,7 @@ def motion_to_trajectory(
     )
     n = res.q_rad.shape[0]  # may be longer than the motion: the tail comes to rest
     t_all = np.arange(n) / fps
-    traj = Trajectory(
-        t_s=t_all,
-        q_rad=res.q_rad,
-        joint_names=robot.joint_names,
-        q_min_rad=robot.q_min_rad,
-        q_max_rad=robot.q_max_rad,
-        v_max_rad_s=robot.v_max_rad_s,
-        a_max_rad_s2=robot.a_max_rad_s2,
-        rest_q_rad=robot.rest_q_rad,
-        silent=silent_mask(silent_spans, t_all),
-        audio_path=audio_path,
-        robot=robot.name,
-    )
+    traj = Trajectory.for_robot(robot, res.q_rad, fps, silent=silent_mask(silent_spans, t_all), audio_path=audio_path)
     return traj, ret, res
 
 

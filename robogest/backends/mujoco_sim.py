@@ -62,9 +62,10 @@ def load_sim_model(robot: RobotConfig) -> SimModel:
     ------
     ConfigError
         The MJCF does not compile, or does not do what the YAML commands
-        (:func:`~robogest.robot.validate.sim_mapping_problems`).
+        (:func:`~robogest.robot.problems.sim_mapping_problems`).
     """
-    from robogest.robot.validate import joint_actuators, load_mjcf, sim_mapping_problems, summary
+    from robogest.robot.mjcf import joint_actuators, load_mjcf
+    from robogest.robot.problems import sim_mapping_problems, summary
 
     where = robot.path or robot.name
     model = load_mjcf(robot)
@@ -377,11 +378,7 @@ def _for_robot(trajectory: Trajectory, robot: RobotConfig, hold_until_s: float) 
         q = np.vstack([q, np.repeat(q[-1:], extra, axis=0)])
     silent = np.zeros(len(t), dtype=bool)
     silent[: trajectory.n_frames] = trajectory.silent[: trajectory.n_frames]
-    return Trajectory(
-        t_s=t, q_rad=q, joint_names=robot.joint_names, q_min_rad=robot.q_min_rad, q_max_rad=robot.q_max_rad,
-        v_max_rad_s=robot.v_max_rad_s, a_max_rad_s2=robot.a_max_rad_s2, rest_q_rad=robot.rest_q_rad,
-        silent=silent, audio_path=trajectory.audio_path, robot=robot.name,
-    )  # fmt: skip
+    return Trajectory.for_robot(robot, q, t_s=t, silent=silent, audio_path=trajectory.audio_path)
 
 
 class _ViewerObserver:

@@ -93,7 +93,7 @@ def add_parsers(sub: Any) -> None:
 
 def report_validation(name_or_path: str | Path) -> int:
     """Print every problem (file, key, fix) or one line saying the robot passed; ConfigError when any problem."""
-    from robogest.robot.validate import validate
+    from robogest.tools.validate import validate
 
     problems = validate(name_or_path)
     for p in problems:
@@ -157,7 +157,7 @@ def print_parts(res) -> None:
 
 def cmd_import(args: argparse.Namespace) -> int:
     from robogest.cli.checks import check_outputs
-    from robogest.importer import import_description
+    from robogest.tools.importer import import_description
 
     check_outputs({"--out": args.out}, {"description": args.description})
     res = import_description(args.description, args.out, name=args.name, overwrite=args.force,
@@ -172,8 +172,8 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 def cmd_import_lerobot_calibration(args: argparse.Namespace) -> int:
     from robogest.cli.checks import check_outputs
-    from robogest.robot.lerobot_calibration import import_lerobot_calibration
     from robogest.robot.registry import find_robot
+    from robogest.tools.lerobot_calibration import import_lerobot_calibration
 
     robot = find_robot(args.robot)
     check_outputs({"--out": args.out}, {"CALIBRATION": args.calibration, "--robot": robot.path})

@@ -106,8 +106,8 @@ def calibrate(args: argparse.Namespace) -> int:
     import yaml
 
     from robogest.cli.checks import check_outputs
-    from robogest.fileio import atomic_path, read_text_capped
-    from robogest.robot.config import load_robot_config
+    from robogest.fileio import read_text_capped
+    from robogest.robot.yaml_edit import write_robot_yaml
 
     robot, backend = _robot_backend(args.robot, args.port, check_limits=False)
     src = Path(robot.path) if robot.path is not None else None
@@ -164,9 +164,7 @@ def calibrate(args: argparse.Namespace) -> int:
             servo["zero_offset_rad"], servo["direction"] = m["zero_offset_rad"], int(m["direction"])
     if out.parent.resolve() != src.parent.resolve():
         doc["model"] = str((src.parent / doc["model"]).resolve())  # keep the MJCF reachable from the copy
-    with atomic_path(out) as tmp:
-        tmp.write_text(yaml.safe_dump(doc, sort_keys=False))
-    load_robot_config(out)  # the copy must load
+    write_robot_yaml(out, doc)  # published only if the copy loads
     for j, m in measured.items():
         k = robot.joint_names.index(j)
         lo, hi = float(robot.q_min_rad[k]), float(robot.q_max_rad[k])

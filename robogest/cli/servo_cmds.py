@@ -380,7 +380,7 @@ def _check_robot_write(robot: Any, link: Any, args: argparse.Namespace, name: st
         )
     if name == "LED" or (name == "TORQUE_ENABLE" and args.value == 0):
         return
-    from robogest.robot.validate import require_hardware_safe
+    from robogest.backends.servo_check import require_hardware_safe
 
     require_hardware_safe(robot, "nothing written")  # the limits a goal is checked against must be the robot's
     backend, k = _joint_of_servo(robot, args)

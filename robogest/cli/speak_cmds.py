@@ -172,8 +172,8 @@ def _hardware_backend(args: argparse.Namespace, robot):
     if args.backend == "sim":
         return None
     from robogest.backends import get_backend_factory
+    from robogest.backends.servo_check import require_hardware_safe
     from robogest.errors import InputError
-    from robogest.robot.validate import require_hardware_safe
 
     sim_only = [flag for flag, on in (("--video", args.video), ("--realtime", args.realtime), ("--view", args.view))
                 if on]  # fmt: skip
@@ -252,7 +252,7 @@ def run_speak(args: argparse.Namespace) -> int:
 
     from robogest.pipeline import speak
     from robogest.robot import find_robot
-    from robogest.robot.validate import require_followable
+    from robogest.tools.validate import require_followable
 
     _check_paths(args, {**speech_inputs(args), "--checkpoint": args.checkpoint})
     _check_export(args)
@@ -287,8 +287,8 @@ def run_play(args: argparse.Namespace) -> int:
     from robogest.fileio import npz_keys
     from robogest.pipeline import motion_to_trajectory
     from robogest.robot import find_robot
-    from robogest.robot.validate import require_followable
     from robogest.safety import check_limits
+    from robogest.tools.validate import require_followable
     from robogest.trajectory import Trajectory, check_matches
 
     path = Path(args.motion)

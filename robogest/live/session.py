@@ -279,8 +279,8 @@ class Robot:
         approach_within_rad: float = 0.2,
     ) -> None:
         from robogest.robot.registry import find_robot
-        from robogest.robot.validate import require_followable
         from robogest.speech.stream import DEFAULT_LOOKAHEAD_S
+        from robogest.tools.validate import require_followable
 
         self.config = find_robot(name)
         require_followable(self.config)  # a robot that cannot follow gestures would only stand there

@@ -18,7 +18,8 @@ from robogest.errors import ConfigError
 from robogest.motion.human_motion import HumanMotion
 from robogest.retarget.base import HUMAN_TO_ROBOT, Retargeter, RetargetResult
 from robogest.robot.config import RobotConfig
-from robogest.robot.validate import load_mjcf, not_in_model
+from robogest.robot.mjcf import load_mjcf
+from robogest.robot.problems import not_in_model
 
 
 class DirectionIK(Retargeter):

@@ -1,5 +1,9 @@
 """Robot definitions (YAML) and where to find them.
 
+The schema (:mod:`.config`, :mod:`.inherit`), the registry (:mod:`.registry`), the one MJCF loader (:mod:`.mjcf`),
+the one robot-YAML writer (:mod:`.yaml_edit`) and the model/YAML mapping problems (:mod:`.problems`). Nothing here
+imports a later stage; the robot tools (validate, import, calibration import) are :mod:`robogest.tools`.
+
 Names load on first use (module ``__getattr__``) so that finding a robot's name costs no numpy/pydantic import.
 """
 

@@ -61,6 +61,40 @@ class Trajectory:
         if self.t_s.shape != (t,) or self.silent.shape != (t,) or len(self.joint_names) != j:
             raise ValueError("t_s, silent and joint_names must match q_rad's (T, J) shape")
 
+    @classmethod
+    def for_robot(
+        cls,
+        robot: RobotConfig,
+        q_rad: np.ndarray,
+        fps: float | None = None,
+        *,
+        t_s: np.ndarray | None = None,
+        silent: np.ndarray | None = None,
+        audio_path: str = "",
+    ) -> Trajectory:
+        """Commands ``q_rad`` [shape=(T, J), rad] for ``robot``, with its joint names, limits, rest pose and name
+        (the block :func:`check_matches` compares, so it is copied in one place only).
+
+        Times are ``t_s`` [shape=(T,), s] if given, else ``k / fps``; ``silent`` [shape=(T,), bool] defaults to
+        all False (no rest windows).
+        """
+        n = len(q_rad)
+        if (fps is None) == (t_s is None):
+            raise ValueError("Trajectory.for_robot needs exactly one of fps and t_s")
+        return cls(
+            t_s=np.arange(n) / fps if t_s is None else t_s,
+            q_rad=q_rad,
+            joint_names=robot.joint_names,
+            q_min_rad=robot.q_min_rad,
+            q_max_rad=robot.q_max_rad,
+            v_max_rad_s=robot.v_max_rad_s,
+            a_max_rad_s2=robot.a_max_rad_s2,
+            rest_q_rad=robot.rest_q_rad,
+            silent=np.zeros(n, dtype=bool) if silent is None else silent,
+            audio_path=audio_path,
+            robot=robot.name,
+        )
+
     @property
     def n_frames(self) -> int:
         return int(self.q_rad.shape[0])

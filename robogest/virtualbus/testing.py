@@ -84,11 +84,7 @@ def monologue(robot: RobotConfig, seconds: float, fps: float = 50.0, amp_rad: fl
     cycle = np.mod(t, 4.0)
     burst = (cycle < 3.0) * np.sin(np.pi * cycle / 3.0) ** 2
     q = amp_rad * burst[:, None] * np.sin(2 * np.pi * 0.8 * t[:, None] + np.arange(len(robot.joints)) * 0.7)
-    return Trajectory(
-        t_s=t, q_rad=np.clip(q, robot.q_min_rad, robot.q_max_rad), joint_names=robot.joint_names,
-        q_min_rad=robot.q_min_rad, q_max_rad=robot.q_max_rad, v_max_rad_s=robot.v_max_rad_s,
-        a_max_rad_s2=robot.a_max_rad_s2, rest_q_rad=robot.rest_q_rad, silent=np.zeros(len(t), bool),
-    )  # fmt: skip
+    return Trajectory.for_robot(robot, np.clip(q, robot.q_min_rad, robot.q_max_rad), t_s=t)
 
 
 def servo_acceleration_ratio(rec: dict[str, np.ndarray], robot: RobotConfig) -> np.ndarray:

@@ -12,7 +12,7 @@ import yaml
 
 from robogest.cli.main import main
 from robogest.errors import ConfigError
-from robogest.robot.validate import _FOLLOW_CACHE
+from robogest.tools.validate import _FOLLOW_CACHE
 from robogest.trajectory import Trajectory
 from tests.robots.humanoid_fixture import ARMS, LEGS, robot_yaml, write_humanoid
 
@@ -68,7 +68,7 @@ def test_robot_session_refuses_it_too(tmp_path):
 
 def test_the_check_is_cached_per_definition_and_model_content(tmp_path):
     from robogest.robot.config import load_robot_config
-    from robogest.robot.validate import follow_problems
+    from robogest.tools.validate import follow_problems
 
     robot = load_robot_config(write_humanoid(tmp_path, held=[*LEGS, *ARMS["l"]]))
     _FOLLOW_CACHE.clear()

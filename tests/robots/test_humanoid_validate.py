@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from robogest.robot.validate import validate
+from robogest.tools.validate import validate
 from tests.robots.humanoid_fixture import ARMS, LEGS, robot_yaml, write_humanoid
 
 

@@ -12,8 +12,8 @@ import pytest
 import yaml
 
 from robogest.cli.main import main
-from robogest.importer import import_description
 from robogest.robot.config import load_robot_config
+from robogest.tools.importer import import_description
 from robogest.trajectory import Trajectory
 from tests.robots.humanoids import ARM, LEG, Options, write_mjcf, write_urdf, write_xacro
 
@@ -111,7 +111,7 @@ def test_overrides_are_kept_on_reimport(tmp_path):
 def test_an_elbow_bending_sideways_at_zero_rests_bent_forward(tmp_path):
     """The elbow's axis points forward at joint zero (it bends sideways there, as ToddlerBot's does); the upper-arm
     twist must turn for it to bend forward as a person's does, and the import still validates."""
-    from robogest.robot.validate import validate
+    from robogest.tools.validate import validate
 
     res = import_description(write_urdf(tmp_path, Options(sideways_elbow=True)), tmp_path / "robots" / "s.yaml")
     assert [str(p) for p in validate(res.yaml_path)] == []
@@ -123,7 +123,7 @@ def test_mjcf_in_degrees_with_meshes_named_after_their_files(tmp_path):
     """An MJCF without ``angle="radian"`` gives its ranges in degrees; the ranges the import writes with its servos
     (and its sites and keyframe) are radians, so the model is written back in radians and its limits come out
     right. Its ``<mesh file="hand.stl"/>`` is named "hand" by MuJoCo and still found under its copy's name."""
-    from robogest.robot.validate import validate
+    from robogest.tools.validate import validate
 
     res = import_description(
         write_mjcf(tmp_path, Options(arm_dof=3, hand_mesh="stl"), degrees=True, actuators=False),

@@ -11,7 +11,7 @@ import pytest
 
 from robogest.cli.main import main
 from robogest.errors import InputError, RobogestError
-from robogest.importer import import_description
+from robogest.tools.importer import import_description
 from tests.robots.test_urdf_import import arm_urdf
 
 pytest.importorskip("trimesh")

@@ -17,9 +17,9 @@ from robogest.backends import get_backend_factory
 from robogest.cli.main import main
 from robogest.errors import ConfigError, InputError
 from robogest.robot.config import load_robot_config
-from robogest.robot.lerobot_calibration import import_lerobot_calibration, read_calibration
 from robogest.robot.registry import find_robot
-from robogest.robot.validate import validate
+from robogest.tools.lerobot_calibration import import_lerobot_calibration, read_calibration
+from robogest.tools.validate import validate
 
 TICK = 2 * math.pi / 4096  # STS3215: rad per tick
 #: As `lerobot-calibrate` writes it for an SO-101 follower (elbow_flex with drive_mode 1 to test the sign).
@@ -141,12 +141,12 @@ def test_a_refused_calibration_keeps_a_good_copy(tmp_path, so101_copy):
 
 
 def test_a_copy_that_would_not_load_is_named_as_the_copy_not_a_temporary_file(tmp_path, so101_copy, monkeypatch):
-    import robogest.robot.lerobot_calibration as lc
+    import robogest.robot.yaml_edit as ye
 
     def refuse(path):
         raise ConfigError(f"{path}: key joints[0]: made up")
 
-    monkeypatch.setattr(lc, "load_robot_config", refuse)
+    monkeypatch.setattr(ye, "load_robot_config", refuse)
     out = tmp_path / "copy.yaml"
     with pytest.raises(ConfigError, match=r"follower\.json: the calibrated copy would not load: .*copy\.yaml: key "
                                           r"joints\[0\]: made up; nothing written") as e:  # fmt: skip

@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 import yaml
 
+from robogest.backends.servo_check import NO_LOAD_RAD_S
 from robogest.errors import ConfigError
 from robogest.robot.config import load_robot_config
 from robogest.robot.registry import DEFAULT_ROBOT, find_robot, list_robots
-from robogest.robot.validate import NO_LOAD_RAD_S, validate_robot
+from robogest.tools.validate import validate_robot
 
 ROBOTS = sorted(list_robots())
 EXPECTED = {"humanoid_xl430", "humanoid_sts3215", "desk_arm_sts3215", "so101_sts3215"}

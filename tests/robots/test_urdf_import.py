@@ -12,9 +12,9 @@ import yaml
 
 from robogest.cli.main import main
 from robogest.errors import InputError
-from robogest.importer import import_description as import_urdf
 from robogest.robot.config import load_robot_config
-from robogest.robot.validate import validate
+from robogest.tools.importer import import_description as import_urdf
+from robogest.tools.validate import validate
 from robogest.trajectory import Trajectory
 
 INERTIAL = (
@@ -257,7 +257,7 @@ def test_roles_from_link_names(tmp_path):
 def test_an_import_cut_short_while_settling_leaves_nothing(tmp_path, monkeypatch):
     """The start-pose draft is written (in a hidden staging folder) before the rest pose settles; a Ctrl-C (or
     SIGTERM) then leaves nothing: no draft robot, no folder it created, and a file --force would replace intact."""
-    import robogest.importer.build as ui
+    import robogest.tools.importer.build as ui
 
     (tmp_path / "arm.urdf").write_text(arm_urdf())
     out = tmp_path / "robots" / "arm.yaml"

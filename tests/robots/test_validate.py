@@ -14,7 +14,7 @@ import yaml
 
 from robogest.cli.main import main
 from robogest.robot.registry import list_robots
-from robogest.robot.validate import validate
+from robogest.tools.validate import validate
 
 
 def _desk_arm_copy(tmp_path: Path, mutate_yaml=None, mutate_xml=None) -> Path:

@@ -10,7 +10,7 @@ import pytest
 from robogest.backends.control import ControlLoop
 from robogest.backends.mujoco_sim import MujocoBackend
 from robogest.robot.config import load_robot_config
-from robogest.robot.validate import load_mjcf
+from robogest.robot.mjcf import load_mjcf
 from tests.robots.humanoid_fixture import LEGS, STAND_HEIGHT_M, write_humanoid
 
 

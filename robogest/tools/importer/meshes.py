@@ -13,7 +13,7 @@ from pathlib import Path
 from robogest.errors import InputError, MissingDependencyError
 from robogest.extras import install_command
 from robogest.fileio import read_bytes_capped
-from robogest.importer.description import Description, confined, find_package
+from robogest.tools.importer.description import Description, confined, find_package
 
 #: Formats MuJoCo reads itself; others are converted to STL at import.
 MUJOCO_MESHES = (".stl", ".obj", ".msh")

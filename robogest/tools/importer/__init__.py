@@ -7,6 +7,6 @@ writes the YAML and publishes everything at once; :mod:`.build` runs them. It si
 the rest pose is the IK's image of a person standing at rest.
 """
 
-from robogest.importer.build import ImportResult, import_description
+from robogest.tools.importer.build import ImportResult, import_description
 
 __all__ = ["ImportResult", "import_description"]

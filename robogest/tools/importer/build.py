@@ -14,11 +14,11 @@ import numpy as np
 
 from robogest.errors import InputError
 from robogest.fileio import write_error
-from robogest.importer import model as mdl
-from robogest.importer.description import Description, confined, read_description
-from robogest.importer.meshes import stage_meshes
-from robogest.importer.parts import Parts, find_parts
-from robogest.importer.write import Staging, YamlParts, check_replaceable, yaml_text
+from robogest.tools.importer import model as mdl
+from robogest.tools.importer.description import Description, confined, read_description
+from robogest.tools.importer.meshes import stage_meshes
+from robogest.tools.importer.parts import Parts, find_parts
+from robogest.tools.importer.write import Staging, YamlParts, check_replaceable, yaml_text
 
 #: Human pose the rest search copies: arms hanging, elbows a little bent (a single desk arm: straight down).
 REST_ITERATIONS = 30

@@ -35,11 +35,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from robogest.errors import ConfigError, InputError
-from robogest.fileio import atomic_path, load_yaml, read_text_capped
-from robogest.robot.config import LIMIT_MARGIN_RAD, RobotConfig, load_robot_config
+from robogest.fileio import load_yaml, read_text_capped
+from robogest.robot.config import LIMIT_MARGIN_RAD, RobotConfig
+from robogest.robot.yaml_edit import write_robot_yaml
 
 _FIELDS = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
 
@@ -252,13 +251,8 @@ def import_lerobot_calibration(
         f"# {Path(calib_path).name} (robogest robots import-lerobot-calibration). base: names that robot, found by\n"
         f"# name when this file is loaded; every key not here is {base}'s (docs/servos.md).\n"
     )
-    with atomic_path(out, suffix=".yaml") as tmp:  # only a copy that loads replaces anything
-        tmp.write_text(header + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
-        try:
-            load_robot_config(tmp)
-        except ConfigError as e:  # name the copy it would have been, not the temporary file
-            raise ConfigError(
-                f"{calib_path}: the calibrated copy would not load: {str(e).replace(str(tmp), str(out))}; "
-                "nothing written"
-            ) from None
+    try:  # only a copy that loads replaces anything
+        write_robot_yaml(out, doc, header)
+    except ConfigError as e:
+        raise ConfigError(f"{calib_path}: the calibrated copy would not load: {e}") from None
     return CalibrationImport(out, changes)

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robogest.errors import InputError
-from robogest.importer.model import geom_boxes
+from robogest.tools.importer.model import geom_boxes
 
 #: Words in joint or link names that say what a chain is (used after the tree, to break ties and name sides).
 _WORDS = {
