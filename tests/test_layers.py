@@ -18,8 +18,8 @@ ROOT = Path(__file__).resolve().parents[1] / "robogest"
 #: (``python -m robogest``) runs the CLI.
 LAYERS: list[set[str]] = [
     {"errors", "_lazy"},
-    {"fileio", "registry"},
-    {"robot"},  # schema, registry, the MJCF loader, the YAML writer, model/YAML problems
+    {"fileio", "registry", "extras"},
+    {"robot", "_version"},  # schema, registry, the MJCF loader, the YAML writer, model/YAML problems
     {"speech", "motion"},
     {"text"},
     {"data"},
@@ -30,7 +30,7 @@ LAYERS: list[set[str]] = [
     {"backends", "virtualbus"},  # the simulated bus shares no code with the backends it tests
     {"tools", "pipeline", "viz"},
     {"eval", "live"},
-    {"integrations"},
+    {"integrations", "aio"},
     {"cli", "robogest"},
     {"__main__"},
 ]

@@ -62,7 +62,7 @@ class _VersionAction(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
 
     def __call__(self, parser: argparse.ArgumentParser, *args: object) -> None:
-        from robogest import __version__
+        from robogest._version import __version__
 
         print(f"robogest {__version__}")
         parser.exit()
