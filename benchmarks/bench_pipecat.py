@@ -203,7 +203,7 @@ def main() -> None:
 
     logger.remove()  # Pipecat's debug lines
     with Robot("humanoid_xl430", backend="sim", audio=False) as robot:
-        robot._warm.join()
+        robot.wait_ready()
         stub_late = asyncio.run(_ticker_with_stub())
         pc_first, pc_rest, late, own = asyncio.run(_pipecat_side(robot))
         d_first, d_opened, d_rest = _direct_side(robot)

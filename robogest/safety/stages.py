@@ -336,7 +336,10 @@ def track(
     frame stops inside the band. If that bound held at ``(p, s)``, then ``s − A`` (or 0) satisfies it at
     the next frame, so the acceleration clip never has to break it (induction); the constraints therefore
     hold exactly up to rounding, which is checked on the result. A ``q0`` inside the margin (but within the
-    hard limits) is left inwards only.
+    hard limits) is left inwards only. A continuation (``step0``) that arrives moving towards an edge faster than
+    the bound allows brakes at ``A`` from its first frame and may enter the margin by at most its stopping
+    distance (checked, as the hard limits are): a streamed plan continues the frames already played, which
+    were made before it.
 
     Parameters
     ----------
@@ -385,8 +388,21 @@ def track(
     p, s = _run_tracker(x[1:], w[1:], q0.copy(), s0.copy(), lo, hi, vstep, astep, out[1:])
     if settle:
         out = _settle(out, p, s, limits, dt_s, lo, hi, vstep, astep)
-    check_limits(out, limits, dt_s, np.minimum(lo, q0), np.maximum(hi, q0), None if step0 is None else s0)
+    lo_ok, hi_ok = np.minimum(lo, q0), np.maximum(hi, q0)
+    if step0 is not None:  # a continuation arriving towards an edge brakes at A from frame 1: the margin absorbs it
+        reach = _stop_distance(np.abs(s0), astep)  # (J,) radians still travelled while braking
+        lo_ok = np.where(s0 < 0, np.minimum(lo_ok, q0 - reach), lo_ok)
+        hi_ok = np.where(s0 > 0, np.maximum(hi_ok, q0 + reach), hi_ok)
+    check_limits(out, limits, dt_s, lo_ok, hi_ok, None if step0 is None else s0)  # the hard limits always
     return out
+
+
+def _stop_distance(step: np.ndarray, a_step: np.ndarray) -> np.ndarray:
+    """``f(s) = Σ_{i≥0} max(s − iA, 0)``: how far a joint moving ``step ≥ 0`` per frame travels (that step
+    included) while braking by ``A`` per frame (the inverse of :func:`_brake_step`)."""
+    a = np.broadcast_to(a_step, step.shape)
+    m = np.floor(step / a)
+    return (m + 1) * step - a * m * (m + 1) / 2
 
 
 def _settle(
