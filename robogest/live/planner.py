@@ -165,13 +165,7 @@ class TrajectoryFeed:
 
     def to_trajectory(self) -> Trajectory:
         """The frames so far as a :class:`Trajectory` (for checks and saving)."""
-        r = self._robot
-        n = self.n_frames
-        return Trajectory(
-            t_s=np.arange(n) / self.fps, q_rad=self._q.copy(), joint_names=self.joint_names,
-            q_min_rad=r.q_min_rad, q_max_rad=r.q_max_rad, v_max_rad_s=r.v_max_rad_s, a_max_rad_s2=r.a_max_rad_s2,
-            rest_q_rad=r.rest_q_rad, silent=np.zeros(n, bool), robot=r.name,
-        )  # fmt: skip
+        return Trajectory.for_robot(self._robot, self._q.copy(), self.fps)
 
 
 def _min_jerk(x: np.ndarray) -> np.ndarray:

@@ -237,8 +237,9 @@ class Robot:
     backend_options : dict, optional
         More keyword options of the backend (e.g. ``lost_after_s`` of a servo backend).
     warm_up : bool
-        Run the speech (eSpeak NG, librosa's numba code) and planning code of a say and of a stream once in the
-        background after opening, so the first utterance after :attr:`ready` is as fast as later ones.
+        Run the speech (eSpeak NG, the front-end) and planning code of a say and of a stream once in the
+        background after opening, so the first utterance after :attr:`ready` is nearly as fast as later ones
+        (measured on the quiet 2-core machine: 424 ms to the first goal against 260 ms, docs/live.md).
     blas_threads : int or None
         While the session is open, BLAS thread pools of the whole process are limited to this many threads (the
         planner's matrices are small; more threads only take cores from the control loop: 2.5x faster streaming
@@ -446,8 +447,8 @@ class Robot:
         return True
 
     def _warm_up(self) -> None:
-        """Load and run the speech and planning code once (librosa's first calls compile and import a lot; the
-        first eSpeak NG call loads its voice), for a say and for a stream, so the first utterance starts as fast
+        """Load and run the speech and planning code once (their first calls import a lot; the first eSpeak NG
+        call loads its voice), for a say and for a stream, so the first utterance starts as fast
         as later ones. Runs in the worker while the robot idles; stops early when the session closes."""
         from robogest.live.planner import StreamingPlanner
         from robogest.pipeline import DEFAULT_TRAJECTORY_FPS, load_speech_input, motion_to_trajectory
