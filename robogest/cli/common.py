@@ -95,7 +95,7 @@ def generator_options(args: argparse.Namespace) -> dict:
         path = Path(gestures)
         if not path.exists():
             raise InputError(f"--gestures {path}: no such folder or file; give 'none' or a folder of gesture YAMLs")
-        opts["repertoire"] = lx.Repertoire(lx.load_units([path, *lx.search_path()]))
+        opts["repertoire"] = lx.repertoire_with(path)
     return opts
 
 

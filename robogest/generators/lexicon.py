@@ -273,3 +273,9 @@ class Repertoire:
 
 def default_repertoire() -> Repertoire:
     return Repertoire(load_units())
+
+
+def repertoire_with(path: Path) -> Repertoire:
+    """The units on the search path plus those of ``path`` (a folder or YAML file of units), which replace units
+    of the same name: what ``--gestures PATH`` and a per-call ``gestures`` path give the generator."""
+    return Repertoire(load_units([path, *search_path()]))

@@ -47,7 +47,7 @@ class BodyLanguage:
             elif self.gestures != "auto":
                 from robogest.generators import lexicon as lx
 
-                opts["repertoire"] = lx.Repertoire(lx.load_units([Path(self.gestures), *lx.search_path()]))
+                opts["repertoire"] = lx.repertoire_with(Path(self.gestures))
         return opts
 
 
