@@ -132,13 +132,13 @@ def _check_audio_beside_save(save: Path) -> None:
     import os
 
     from robogest.errors import InputError
-    from robogest.fileio import read_npz
+    from robogest.trajectory.types import saved_audio_path
 
     wav = save.with_suffix(".wav")
     if not os.path.lexists(wav) or not os.path.isfile(wav):  # a folder, FIFO...: check_outputs says why
         return
-    try:  # one small member, not the whole file
-        named = str(read_npz(save, keys=["audio_path"]).get("audio_path", ""))
+    try:
+        named = saved_audio_path(save)
     except InputError:  # no earlier trajectory there, or not a readable one
         named = ""
     if not named or Path(named).name != wav.name:
@@ -339,12 +339,9 @@ def _play_audio(args: argparse.Namespace, motion: Path, is_traj: bool) -> tuple[
     """
     if args.audio or not args.video:
         return args.audio, ""
-    named = ""
-    if is_traj:
-        from robogest.fileio import read_npz
+    from robogest.trajectory.types import saved_audio_path
 
-        value = read_npz(motion, keys=["audio_path"]).get("audio_path")
-        named = str(value) if value is not None and value.dtype.kind == "U" and value.ndim == 0 else ""
+    named = saved_audio_path(motion) if is_traj else ""
     if named:
         tried = [motion.parent / Path(named).name, Path(named)]  # speak --save writes it beside the trajectory
         found = next((p for p in tried if p.is_file()), None)

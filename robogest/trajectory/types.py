@@ -176,6 +176,13 @@ class Trajectory:
         )
 
 
+def saved_audio_path(path: str | Path) -> str:
+    """The ``audio_path`` a saved trajectory names, read alone (one small member, not the whole file); "" when it
+    names none or holds something other than one string. An unreadable file is an :class:`InputError`."""
+    v = read_npz(path, keys=["audio_path"]).get("audio_path")
+    return str(v) if v is not None and v.dtype.kind == "U" and v.ndim == 0 else ""
+
+
 #: Key prefix of :attr:`Trajectory.annotations` in a saved ``.npz``.
 ANNOTATION_PREFIX = "annotation_"
 #: Longest trajectory robogest loads (and so plays), seconds.
