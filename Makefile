@@ -10,7 +10,7 @@ DEMO_TEXT ?= Hello! I am a small robot, and I move my arms when I speak. Do you 
 # Headless rendering through EGL (Mesa in software, or the GPU driver).
 export MUJOCO_GL ?= egl
 
-.PHONY: demo test install install-dev lint bench clean
+.PHONY: demo test install install-dev lint typecheck bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -39,6 +39,9 @@ test: $(VENV)/.installed-dev
 
 lint: $(VENV)/.installed-dev
 	$(BIN)/ruff check . && $(BIN)/ruff format --check .
+
+typecheck: $(VENV)/.installed-dev
+	$(BIN)/mypy
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/run.py
