@@ -69,45 +69,7 @@ def identify_beats(
     duration = float(volume.shape[0] / fps if duration_s is None else duration_s)
     loud_idx = np.flatnonzero(volume > noise_level)
 
-    real: list[float] = []
-    for t in np.sort(np.asarray(onset_times, dtype=np.float64)):
-        if 0.0 <= t < duration and (not real or t - real[-1] >= min_gap_s - _EPS):
-            real.append(float(t))
-
-    def first_loud(t_from: float, t_to: float) -> float | None:
-        """Time of the first loud frame in ``[t_from, t_to]``, or None."""
-        i0 = math.ceil(t_from * fps - _EPS)
-        k = int(np.searchsorted(loud_idx, i0))
-        if k < loud_idx.shape[0] and loud_idx[k] / fps <= t_to + _EPS:
-            return float(loud_idx[k] / fps)
-        return None
-
-    def evenly(a: float, b: float) -> list[float]:
-        n = max(0, math.ceil((b - a) / max_gap_s - _EPS) - 1)
-        return [a + (b - a) * (j + 1) / (n + 1) for j in range(n)]
-
-    def fill(a: float, b: float) -> list[float]:
-        out: list[float] = []
-        cur = a
-        while b - cur > max_gap_s + _EPS:
-            lo, hi = cur + min_gap_s, b - min_gap_s
-            if hi < lo:  # only when D_M < 2 D_m: one beat in the middle is the best possible
-                out.append(0.5 * (cur + b))
-                break
-            t = first_loud(lo, min(cur + max_gap_s, hi))
-            if t is not None:
-                out.append(t)
-                cur = t
-                continue
-            q = first_loud(cur + max_gap_s, hi)
-            if q is None:  # quiet until the next beat
-                out.extend(evenly(cur, b))
-                break
-            out.extend(evenly(cur, q))
-            out.append(q)
-            cur = q
-        return out
-
+    real = _spaced_onsets(onset_times, duration, min_gap_s)
     beats: list[float] = []
     pseudo: list[bool] = []
     anchors = [0.0, *real, duration]
@@ -116,10 +78,63 @@ def identify_beats(
         if j > 0:
             beats.append(a)
             pseudo.append(False)
-        inserted = fill(a, b)
+        inserted = _pseudo_beats(a, b, loud_idx, fps, min_gap_s, max_gap_s)
         beats.extend(inserted)
         pseudo.extend([True] * len(inserted))
     return np.asarray(beats, dtype=np.float64), np.asarray(pseudo, dtype=bool)
+
+
+def _spaced_onsets(onset_times: np.ndarray, duration: float, min_gap_s: float) -> list[float]:
+    """The real beats: onsets within ``[0, duration)`` in time order, each at least D_m after the previous kept
+    one (an onset closer than that belongs to the same beat)."""
+    real: list[float] = []
+    for t in np.sort(np.asarray(onset_times, dtype=np.float64)):
+        if 0.0 <= t < duration and (not real or t - real[-1] >= min_gap_s - _EPS):
+            real.append(float(t))
+    return real
+
+
+def _first_loud(loud_idx: np.ndarray, fps: float, t_from: float, t_to: float) -> float | None:
+    """Time of the first loud frame (``loud_idx``: increasing indices) in ``[t_from, t_to]``, or None."""
+    i0 = math.ceil(t_from * fps - _EPS)
+    k = int(np.searchsorted(loud_idx, i0))
+    if k < loud_idx.shape[0] and loud_idx[k] / fps <= t_to + _EPS:
+        return float(loud_idx[k] / fps)
+    return None
+
+
+def _evenly(a: float, b: float, max_gap_s: float) -> list[float]:
+    """The fewest evenly spaced times strictly between ``a`` and ``b`` that leave no gap over D_M."""
+    n = max(0, math.ceil((b - a) / max_gap_s - _EPS) - 1)
+    return [a + (b - a) * (j + 1) / (n + 1) for j in range(n)]
+
+
+def _pseudo_beats(
+    a: float, b: float, loud_idx: np.ndarray, fps: float, min_gap_s: float, max_gap_s: float
+) -> list[float]:
+    """Pseudo-beats between consecutive beats ``a`` and ``b`` so that no gap exceeds D_M: each at the first loud
+    frame D_m..D_M after the previous one, else evenly spaced up to the next loud frame (or to ``b`` when quiet
+    until then)."""
+    out: list[float] = []
+    cur = a
+    while b - cur > max_gap_s + _EPS:
+        lo, hi = cur + min_gap_s, b - min_gap_s
+        if hi < lo:  # only when D_M < 2 D_m: one beat in the middle is the best possible
+            out.append(0.5 * (cur + b))
+            break
+        t = _first_loud(loud_idx, fps, lo, min(cur + max_gap_s, hi))
+        if t is not None:
+            out.append(t)
+            cur = t
+            continue
+        q = _first_loud(loud_idx, fps, cur + max_gap_s, hi)
+        if q is None:  # quiet until the next beat
+            out.extend(_evenly(cur, b, max_gap_s))
+            break
+        out.extend(_evenly(cur, q, max_gap_s))
+        out.append(q)
+        cur = q
+    return out
 
 
 def detect_onsets(audio: np.ndarray, sr: int, hop: int, envelope_max: float | None = None) -> np.ndarray:
@@ -178,4 +193,5 @@ def gate_onsets(
     i0 = np.clip(np.floor(onsets * rate).astype(int), 0, volume.shape[0] - 1)
     n = max(1, round(look_ahead_s * rate) + 1)
     idx = np.clip(i0[:, None] + np.arange(n)[None, :], 0, volume.shape[0] - 1)
-    return onsets[np.max(volume[idx], axis=1) > threshold]
+    kept: np.ndarray = onsets[np.max(volume[idx], axis=1) > threshold]
+    return kept

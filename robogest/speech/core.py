@@ -371,46 +371,89 @@ def _synthesize_pieces(
     pieces = _pieces(segments, words_per_minute, pause_s)
     if not any(p[0] for p in pieces):
         raise InputError(f"{source}: the text has no speakable words: {text[:40]!r}")
-    parts: list[np.ndarray] = []
-    spoken: list[tuple[int, str]] = []  # (start sample at eSpeak's rate, word text)
+    spoken = _speak_pieces(segments, pieces, voice, stress)
+    raw = np.concatenate(spoken.parts)
+    if raw.shape[0] == 0:
+        raise InputError(f"{source}: eSpeak NG produced no audio for {text[:40]!r}")
+    a = _check_audio(raw, spoken.sr, config, source)
+    a = resample(a, spoken.sr, config.sr)
+    words = _timed_words(a, spoken.words, config.sr / spoken.sr, config)
+    if not words:
+        raise InputError(f"{source}: the text has no speakable words: {text[:40]!r}")
+    speech = analyze(a, config.sr, words, config, source=source, text=text)
+    stressed = np.concatenate(spoken.stressed_s) if spoken.stressed_s else np.zeros(0)
+    return speech, stressed, tuple(spoken.pauses)
+
+
+@dataclass
+class _Spoken:
+    """eSpeak's output for a list of pieces, end to end at its own rate ``sr`` (before resampling)."""
+
+    sr: int
+    parts: list[np.ndarray]  # float32 audio and zero pauses, in order
+    words: list[tuple[int, str]]  # (start sample, word text as written)
+    stressed_s: list[np.ndarray]  # stressed-vowel onsets of each spoken piece, seconds
+    pauses: list[tuple[float, float]]  # (start_s, end_s) of the pause before each segment; (0, 0) if none
+
+
+def _speak_pieces(
+    segments: list[TextSegment], pieces: list[tuple[str, int, float, int, int, bool]], voice: str, stress: bool
+) -> _Spoken:
+    """One eSpeak call per piece, each after its pause; a segment that resumes after an earlier word
+    (``resume_after``) waits until that word started plus its hold, which needs the word's sample (``anchors``)."""
+    out = _Spoken(sr=22050, parts=[], words=[], stressed_s=[], pauses=[(0.0, 0.0)] * len(segments))
     anchors: dict[tuple[int, int], int] = {}  # (segment, char) of each word -> its start sample
-    stressed: list[np.ndarray] = []  # seconds
-    pauses: list[tuple[float, float]] = [(0.0, 0.0)] * len(segments)
-    offset, esr, wait_s = 0, 22050, 0.0  # eSpeak's rate (known from its first call; 22050 for every voice)
+    offset, wait_s = 0, 0.0  # eSpeak's rate is known from its first call (22050 for every voice)
     for chunk, rate, before_s, k, at, first in pieces:
-        if first and segments[k].resume_after is not None:
-            seg, char, hold_s = segments[k].resume_after  # type: ignore[misc]
-            t0 = min((s for (sg, c), s in anchors.items() if sg == seg and c >= char), default=None)
-            if t0 is not None:
-                before_s = max(before_s, (t0 - offset) / esr - wait_s + hold_s)
+        resume = segments[k].resume_after
+        if first and resume is not None:
+            before_s = _resume_pause_s(resume, anchors, before_s, offset, wait_s, out.sr)
         wait_s += before_s
         if not chunk:
             continue
         if stress:
-            raw, esr, events, phonemes = espeak_synthesize_phonemes(chunk, voice, rate)
+            raw, out.sr, events, phonemes = espeak_synthesize_phonemes(chunk, voice, rate)
         else:
-            raw, esr, events = espeak_synthesize(chunk, voice, rate)
-        if wait_s > 0 and (parts or first):
-            parts.append(np.zeros(round(wait_s * esr), dtype=np.float32))
+            raw, out.sr, events = espeak_synthesize(chunk, voice, rate)
+        if wait_s > 0 and (out.parts or first):
+            out.parts.append(np.zeros(round(wait_s * out.sr), dtype=np.float32))
             if first:
-                pauses[k] = (offset / esr, (offset + parts[-1].shape[0]) / esr)
-            offset += parts[-1].shape[0]
+                out.pauses[k] = (offset / out.sr, (offset + out.parts[-1].shape[0]) / out.sr)
+            offset += out.parts[-1].shape[0]
         wait_s = 0.0
         if stress:
-            stressed.append(offset / esr + stressed_vowel_onsets(phonemes, esr))
-        spoken += [(offset + e.start_sample, chunk[e.char_start : e.char_end]) for e in events]
+            out.stressed_s.append(offset / out.sr + stressed_vowel_onsets(phonemes, out.sr))
+        out.words += [(offset + e.start_sample, chunk[e.char_start : e.char_end]) for e in events]
         anchors.update({(k, at + e.char_start): offset + e.start_sample for e in events})
-        parts.append(raw)
+        out.parts.append(raw)
         offset += raw.shape[0]
     if wait_s > 0:  # a pause after the last words
-        parts.append(np.zeros(round(wait_s * esr), dtype=np.float32))
-        pauses[pieces[-1][3]] = (offset / esr, (offset + parts[-1].shape[0]) / esr)
-    raw = np.concatenate(parts)
-    if raw.shape[0] == 0:
-        raise InputError(f"{source}: eSpeak NG produced no audio for {text[:40]!r}")
-    a = _check_audio(raw, esr, config, source)
-    a = resample(a, esr, config.sr)
-    scale = config.sr / esr
+        out.parts.append(np.zeros(round(wait_s * out.sr), dtype=np.float32))
+        out.pauses[pieces[-1][3]] = (offset / out.sr, (offset + out.parts[-1].shape[0]) / out.sr)
+    return out
+
+
+def _resume_pause_s(
+    resume_after: tuple[int, int, float],
+    anchors: dict[tuple[int, int], int],
+    before_s: float,
+    offset: int,
+    wait_s: float,
+    sr: int,
+) -> float:
+    """A segment's pause lengthened so that it ends ``hold_s`` after the start of the word it resumes after
+    (:attr:`TextSegment.resume_after`); unchanged when that word was not spoken. ``offset`` is the samples spoken
+    so far and ``wait_s`` the silence already owed before the segment."""
+    seg, char, hold_s = resume_after
+    t0 = min((s for (sg, c), s in anchors.items() if sg == seg and c >= char), default=None)
+    if t0 is None:
+        return before_s
+    return max(before_s, (t0 - offset) / sr - wait_s + hold_s)
+
+
+def _timed_words(a: np.ndarray, spoken: list[tuple[int, str]], scale: float, config: SpeechConfig) -> list[Word]:
+    """The words eSpeak reported, their starts moved to ``a``'s rate (``scale``: new rate / eSpeak's) and trimmed
+    to the loud part of the audio; each ends where the next starts, so a word that got no audio is dropped."""
     volume, vrate = fine_volume(a, config.sr, config)
     loud = volume > activity_threshold(estimate_noise_level(volume, config), config)
     hop = round(config.sr / vrate)
@@ -428,7 +471,4 @@ def _synthesize_pieces(
         if s1 <= s0:
             continue
         words.append(Word(token, s0 / config.sr, s1 / config.sr, count_syllables(token)))
-    if not words:
-        raise InputError(f"{source}: the text has no speakable words: {text[:40]!r}")
-    speech = analyze(a, config.sr, words, config, source=source, text=text)
-    return speech, (np.concatenate(stressed) if stressed else np.zeros(0)), tuple(pauses)
+    return words

@@ -97,7 +97,7 @@ def mel_filters(sr: int, n_fft: int, n_mels: int, fmax_hz: float | None = None) 
     ramps = np.subtract.outer(mel_f, fftfreqs)
     lower = -ramps[:-2] / fdiff[:-1, None]
     upper = ramps[2:] / fdiff[1:, None]
-    weights = np.maximum(0.0, np.minimum(lower, upper)).astype(np.float32)
+    weights: np.ndarray = np.maximum(0.0, np.minimum(lower, upper)).astype(np.float32)
     weights *= (2.0 / (mel_f[2 : n_mels + 2] - mel_f[:n_mels]))[:, None]
     return weights
 
@@ -110,12 +110,13 @@ def mel_power(y: np.ndarray, sr: int, n_fft: int, hop: int, n_mels: int, center:
     ndarray [shape=(..., n_mels, T)], float32
     """
     s = power_spectrogram(y, n_fft, hop, center=center)
-    return np.einsum("...ft,mf->...mt", s, mel_filters(sr, n_fft, n_mels), optimize=True)
+    mel: np.ndarray = np.einsum("...ft,mf->...mt", s, mel_filters(sr, n_fft, n_mels), optimize=True)
+    return mel
 
 
 def power_to_db(s: np.ndarray, amin: float = 1e-10, top_db: float | None = 80.0) -> np.ndarray:
     """``10 log10(max(amin, s))`` re 1.0, floored at ``max - top_db`` unless ``top_db`` is None."""
-    log_spec = 10.0 * np.log10(np.maximum(amin, s))
+    log_spec: np.ndarray = 10.0 * np.log10(np.maximum(amin, s))
     log_spec -= 10.0 * np.log10(np.maximum(amin, 1.0))
     if top_db is not None:
         log_spec = np.maximum(log_spec, log_spec.max() - top_db)
@@ -135,7 +136,8 @@ def mfcc_from_db(mel_db: np.ndarray, n_mfcc: int) -> np.ndarray:
     """
     import scipy.fft
 
-    return scipy.fft.dct(mel_db, axis=-1, type=2, norm="ortho")[..., :n_mfcc]
+    coeffs: np.ndarray = scipy.fft.dct(mel_db, axis=-1, type=2, norm="ortho")[..., :n_mfcc]
+    return coeffs
 
 
 def yin(
@@ -166,7 +168,8 @@ def yin(
     none = ~np.any(below, axis=0, keepdims=True)
     period[none] = np.argmin(d, axis=0)[None, :][none]
     period_s = (min_period + period + np.take_along_axis(shifts, period, axis=0))[0]
-    return sr / period_s
+    pitch_hz: np.ndarray = sr / period_s
+    return pitch_hz
 
 
 def _cmnd(frames: np.ndarray, min_period: int, max_period: int) -> np.ndarray:

@@ -67,7 +67,7 @@ def save_features(speech: Speech, path: str | Path) -> Path:
     Keys are those of :func:`feature_arrays`. Returns the path written.
     """
     arrays = feature_arrays(speech)
-    return _atomic_write(path, lambda f: np.savez_compressed(f, **arrays))
+    return _atomic_write(path, lambda f: np.savez_compressed(f, allow_pickle=False, **arrays))
 
 
 def write_wav(speech: Speech, path: str | Path) -> Path:

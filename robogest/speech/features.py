@@ -40,15 +40,18 @@ def _take(x: np.ndarray, n_frames: int, pos: np.ndarray | None, nearest: bool = 
     """Rows of ``x`` (time first) at the target frames; pads by edge repetition if short."""
     if pos is None:
         idx = np.minimum(np.arange(n_frames), x.shape[0] - 1)
-        return x[idx]
+        rows: np.ndarray = x[idx]
+        return rows
     if nearest:
-        return x[np.clip(np.rint(pos).astype(int), 0, x.shape[0] - 1)]
+        nearest_rows: np.ndarray = x[np.clip(np.rint(pos).astype(int), 0, x.shape[0] - 1)]
+        return nearest_rows
     i0 = np.clip(np.floor(pos).astype(int), 0, x.shape[0] - 1)
     i1 = np.minimum(i0 + 1, x.shape[0] - 1)
     w = (pos - np.floor(pos)).astype(np.float32)
     if x.ndim == 2:
         w = w[:, None]
-    return (1.0 - w) * x[i0] + w * x[i1]
+    blended: np.ndarray = (1.0 - w) * x[i0] + w * x[i1]
+    return blended
 
 
 def forward_diff(x: np.ndarray) -> np.ndarray:

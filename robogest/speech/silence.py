@@ -47,7 +47,8 @@ def frame_rms(audio: np.ndarray, sr: int, hop: int, win: int) -> np.ndarray:
     lo = np.clip(centres - win // 2, 0, n)
     hi = np.clip(centres - win // 2 + win, 0, n)
     energy = np.maximum(csum[hi] - csum[lo], 0.0)
-    return np.sqrt(energy / win).astype(np.float32)
+    rms: np.ndarray = np.sqrt(energy / win).astype(np.float32)
+    return rms
 
 
 def fine_volume(audio: np.ndarray, sr: int, config: SpeechConfig) -> tuple[np.ndarray, float]:

@@ -179,7 +179,7 @@ class SpeechStream:
 
     @property
     def _n(self) -> int:
-        return self._audio.shape[0] + sum(c.shape[0] for c in self._chunks)
+        return int(self._audio.shape[0]) + sum(int(c.shape[0]) for c in self._chunks)
 
     def feed(self, chunk: np.ndarray | bytes, words: Sequence[tuple[str, float, float] | Word] | None = None) -> bool:
         """Append a chunk (mono int16/float32 at ``sample_rate``) and optional words ``(text, start_s, end_s)``
