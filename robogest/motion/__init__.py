@@ -7,6 +7,7 @@ so generators, metrics and retargeting see one skeleton whatever the dataset.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 from robogest.errors import InputError
@@ -17,8 +18,8 @@ from robogest.motion.skeleton import CANONICAL, Skeleton
 from robogest.motion.smplx import load_smplx, save_smplx
 
 #: File suffix -> loader used by :func:`load_motion`, and writer used by :func:`save_motion`.
-_LOADERS = {".bvh": load_bvh, ".npz": load_smplx}
-_SAVERS = {".bvh": save_bvh, ".npz": save_smplx}
+_LOADERS: dict[str, Callable[[Path], HumanMotion]] = {".bvh": load_bvh, ".npz": load_smplx}
+_SAVERS: dict[str, Callable[[HumanMotion, Path], None]] = {".bvh": save_bvh, ".npz": save_smplx}
 
 
 def load_motion(path: str | os.PathLike) -> HumanMotion:

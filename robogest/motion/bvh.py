@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import os
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -92,86 +92,120 @@ def _count(tok: str, path: Path, line_no: int) -> int:
     return int(v)
 
 
-def _parse_hierarchy(lines: list[str], path: Path) -> tuple[list[str], list[int], list, list[list[str]], dict, int]:
-    """Joint names, parents, file-unit offsets, channel names, end sites, and the index of the ``MOTION`` line."""
+@dataclass
+class _Hierarchy:
+    """The ``HIERARCHY`` section read so far, one line at a time (:func:`_parse_hierarchy`).
+
+    ``stack`` holds the open ``{`` blocks: a joint index, or ``"end"`` inside an End Site; ``pending`` is the
+    joint (or End Site) whose ``{`` comes next.
+    """
+
+    path: Path
+    names: list[str] = field(default_factory=list)
+    parents: list[int] = field(default_factory=list)
+    offsets: list[list[float]] = field(default_factory=list)  # file units, one (x, y, z) per joint
+    channels: list[list[str]] = field(default_factory=list)
+    end_sites: dict[int, list[float]] = field(default_factory=dict)  # joint -> its End Site offset
+    stack: list[int | str] = field(default_factory=list)
+    pending: int | str | None = None
+
+    def bad(self, ln: int, msg: str) -> InputError:
+        return _err(self.path, f"line {ln}: {msg}", "Repair or re-export the file")
+
+    def read_line(self, toks: list[str], ln: int) -> None:
+        """One non-empty line of the section (its keyword not ``MOTION``)."""
+        kw = toks[0].upper()
+        if kw == "HIERARCHY":
+            return
+        if kw in ("ROOT", "JOINT"):
+            self.open_joint(toks, ln)
+            toks = toks[2:]
+        elif kw == "END":
+            if not self.stack:
+                raise self.bad(ln, "End Site outside a joint")
+            self.pending = "end"
+            toks = toks[2:]
+        elif kw == "OFFSET":
+            self.offset(toks, ln)
+            return
+        elif kw == "CHANNELS":
+            self.channel_list(toks, ln)
+            return
+        self.braces(toks, ln)  # possibly on the same line as ROOT/JOINT/End Site
+
+    def open_joint(self, toks: list[str], ln: int) -> None:
+        """``ROOT name`` (only outside every block) or ``JOINT name`` (only inside a joint)."""
+        if len(toks) < 2:
+            raise self.bad(ln, f"{toks[0]} without a name")
+        if (toks[0].upper() == "ROOT") != (not self.stack) or (self.stack and self.stack[-1] == "end"):
+            raise self.bad(ln, f"{toks[0]} {toks[1]} is misplaced")
+        self.names.append(toks[1])
+        self.parents.append(int(self.stack[-1]) if self.stack else -1)
+        self.offsets.append([0.0, 0.0, 0.0])
+        self.channels.append([])
+        self.pending = len(self.names) - 1
+
+    def offset(self, toks: list[str], ln: int) -> None:
+        """``OFFSET x y z`` of the innermost joint or End Site."""
+        if len(toks) < 4 or not self.stack:
+            raise self.bad(ln, "OFFSET needs 3 numbers inside a joint")
+        vals = [_float(t, self.path, ln) for t in toks[1:4]]
+        top = self.stack[-1]
+        if top == "end":
+            self.end_sites[int(self.stack[-2])] = vals
+        else:
+            self.offsets[int(top)] = vals
+
+    def channel_list(self, toks: list[str], ln: int) -> None:
+        """``CHANNELS n name...`` of the innermost joint: n names, each an axis and position/rotation."""
+        if len(toks) < 2 or not self.stack or self.stack[-1] == "end":
+            raise self.bad(ln, "CHANNELS outside a joint")
+        n = _count(toks[1], self.path, ln)
+        chans = [c.capitalize() for c in toks[2 : 2 + n]]
+        bad = [c for c in chans if len(c) != 9 or c[0] not in _AXES or c[1:] not in ("position", "rotation")]
+        if len(chans) != n or bad:
+            raise self.bad(ln, f"bad CHANNELS list {toks[2:]}")
+        self.channels[int(self.stack[-1])] = chans
+
+    def braces(self, toks: list[str], ln: int) -> None:
+        """``{`` opens the pending joint's block, ``}`` closes the innermost; anything else is an error."""
+        for t in toks:
+            if t == "{":
+                if self.pending is None:
+                    raise self.bad(ln, "unexpected '{'")
+                self.stack.append(self.pending)
+                self.pending = None
+            elif t == "}":
+                if not self.stack:
+                    raise self.bad(ln, "unbalanced '}'")
+                self.stack.pop()
+            else:
+                raise self.bad(ln, f"unexpected {t!r} in HIERARCHY")
+
+
+def _parse_hierarchy(lines: list[str], path: Path) -> tuple[_Hierarchy, int]:
+    """The skeleton (joint names, parents, file-unit offsets, channel names, end sites) and the index of the
+    ``MOTION`` line."""
     first = next((ln.strip() for ln in lines if ln.strip()), "")
     if first.upper() != "HIERARCHY":
         raise _err(path, "not a BVH file (it does not start with HIERARCHY)", "Pass a .bvh motion-capture file")
-    names: list[str] = []
-    parents: list[int] = []
-    offsets: list[list[float]] = []
-    channels: list[list[str]] = []
-    end_sites: dict[int, list[float]] = {}
-    stack: list[int | str] = []  # joint index, or "end" inside an End Site block
-    pending: int | str | None = None
+    h = _Hierarchy(path)
     motion_line = -1
     for i, line in enumerate(lines):
         toks = line.split()
         if not toks:
             continue
-        ln = i + 1
-        kw = toks[0].upper()
-        if kw == "MOTION":
+        if toks[0].upper() == "MOTION":
             motion_line = i
             break
-        if kw == "HIERARCHY":
-            continue
-        if kw in ("ROOT", "JOINT"):
-            if len(toks) < 2:
-                raise _err(path, f"line {ln}: {toks[0]} without a name", "Repair or re-export the file")
-            if (kw == "ROOT") != (not stack) or (stack and stack[-1] == "end"):
-                raise _err(path, f"line {ln}: {toks[0]} {toks[1]} is misplaced", "Repair or re-export the file")
-            names.append(toks[1])
-            parents.append(int(stack[-1]) if stack else -1)
-            offsets.append([0.0, 0.0, 0.0])
-            channels.append([])
-            pending = len(names) - 1
-            toks = toks[2:]
-        elif kw == "END":
-            if not stack:
-                raise _err(path, f"line {ln}: End Site outside a joint", "Repair or re-export the file")
-            pending = "end"
-            toks = toks[2:]
-        elif kw == "OFFSET":
-            if len(toks) < 4 or not stack:
-                raise _err(path, f"line {ln}: OFFSET needs 3 numbers inside a joint", "Repair or re-export the file")
-            vals = [_float(t, path, ln) for t in toks[1:4]]
-            top = stack[-1]
-            if top == "end":
-                end_sites[int(stack[-2])] = vals
-            else:
-                offsets[int(top)] = vals
-            continue
-        elif kw == "CHANNELS":
-            if len(toks) < 2 or not stack or stack[-1] == "end":
-                raise _err(path, f"line {ln}: CHANNELS outside a joint", "Repair or re-export the file")
-            n = _count(toks[1], path, ln)
-            chans = [c.capitalize() for c in toks[2 : 2 + n]]
-            bad = [c for c in chans if len(c) != 9 or c[0] not in _AXES or c[1:] not in ("position", "rotation")]
-            if len(chans) != n or bad:
-                raise _err(path, f"line {ln}: bad CHANNELS list {toks[2:]}", "Repair or re-export the file")
-            channels[int(stack[-1])] = chans
-            continue
-        # Braces, possibly on the same line as ROOT/JOINT/End Site.
-        for t in toks:
-            if t == "{":
-                if pending is None:
-                    raise _err(path, f"line {ln}: unexpected '{{'", "Repair or re-export the file")
-                stack.append(pending)
-                pending = None
-            elif t == "}":
-                if not stack:
-                    raise _err(path, f"line {ln}: unbalanced '}}'", "Repair or re-export the file")
-                stack.pop()
-            else:
-                raise _err(path, f"line {ln}: unexpected {t!r} in HIERARCHY", "Repair or re-export the file")
-    if not names:
+        h.read_line(toks, i + 1)
+    if not h.names:
         raise _err(path, "no ROOT joint in HIERARCHY", "Repair or re-export the file")
     if motion_line < 0:
         raise _err(path, "no MOTION section", "The file is truncated; re-export it")
-    if stack:
+    if h.stack:
         raise _err(path, "unbalanced braces in HIERARCHY", "Repair or re-export the file")
-    return names, parents, offsets, channels, end_sites, motion_line
+    return h, motion_line
 
 
 def _parse_motion(lines: list[str], start: int, n_channels: int, n_joints: int, path: Path) -> tuple[np.ndarray, float]:
@@ -270,7 +304,8 @@ def read_bvh(path: str | os.PathLike, scale: float | None = None) -> BvhData:
     """
     path = Path(path)
     lines = _read_lines(path)
-    names, parents, offsets_l, channels, end_l, motion_line = _parse_hierarchy(lines, path)
+    h, motion_line = _parse_hierarchy(lines, path)
+    names, parents, offsets_l, channels, end_l = h.names, h.parents, h.offsets, h.channels, h.end_sites
     n_ch = sum(len(c) for c in channels)
     data, frame_time = _parse_motion(lines, motion_line, n_ch, len(names), path)
     offsets = np.array(offsets_l, dtype=np.float64)  # (J, 3) file units

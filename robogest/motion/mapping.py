@@ -25,6 +25,7 @@ their metres.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -32,7 +33,7 @@ import numpy as np
 from robogest.errors import InputError
 from robogest.motion import rotations as R
 from robogest.motion.human_motion import HumanMotion
-from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
+from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M, Skeleton
 
 if TYPE_CHECKING:
     from robogest.motion.bvh import BvhData
@@ -249,16 +250,7 @@ def map_to_canonical(
     idx, _ = _select_map(sk.names, name_map, source)
     end_sites_m = end_sites_m or {}
     cn = CANONICAL.names
-    # Each mapped joint must sit below its canonical parent's source joint, or the composition is meaningless.
-    for c, s in idx.items():
-        p = CANONICAL.parents[cn.index(c)]
-        while p >= 0 and cn[p] not in idx:
-            p = CANONICAL.parents[p]
-        if p >= 0 and s != idx[cn[p]] and _descendant_path(sk.parents, idx[cn[p]], s) is None:
-            raise InputError(
-                f"{source}: name map puts {c}->{sk.names[s]} outside {cn[p]}->{sk.names[idx[cn[p]]]}'s subtree. "
-                "Fix the name_map."
-            )
+    _check_nesting(sk, idx, source)
     from robogest.motion.bvh import rest_positions
 
     p0 = rest_positions(sk)  # (J_s, 3) metres, source rest pose, root at the origin
@@ -271,51 +263,102 @@ def map_to_canonical(
     n_frames = motion.n_frames
     g_c = np.empty((n_frames, CANONICAL.n_joints, 4))
     align: dict[str, np.ndarray] = {}
-    rest_c = rest_positions(CANONICAL)
-
-    def source_segment(j_src: int, target: int) -> np.ndarray | None:
-        path = _descendant_path(sk.parents, j_src, target)
-        for k in path or []:
-            d = p0[k] - p0[j_src]
-            if np.linalg.norm(d) > 1e-6:
-                return d
-        return None
-
+    rest = _RestPose(sk, idx, p0, a_mat, end_sites_m, rest_positions(CANONICAL), source)
     for j, name in enumerate(cn):
         parent = CANONICAL.parents[j]
         if name not in idx:
             g_c[:, j] = g_c[:, parent] if parent >= 0 else R.IDENTITY
             continue
-        s = idx[name]
-        c_j = R.IDENTITY
-        if name in _BONE_CHILD:
-            child = _BONE_CHILD[name]
-            d_s = source_segment(s, idx[child]) if child in idx else None
-            if d_s is None and child not in idx:  # wrist without a mapped hand joint
-                kids = [k for k, p in enumerate(sk.parents) if p == s]
-                if s in end_sites_m and np.linalg.norm(end_sites_m[s]) > 1e-6:
-                    d_s = end_sites_m[s]
-                elif kids:
-                    d_s = np.mean(sk.offsets_m[kids], axis=0)
-            if d_s is None or np.linalg.norm(d_s) < 1e-9:
-                if child in idx:
-                    raise InputError(
-                        f"{source}: {sk.names[s]} and {sk.names[idx[child]]} coincide in the rest pose, so the "
-                        f"{name} bone has no direction. Fix the name_map."
-                    )
-                c_j = align[cn[parent]]  # hand continues the forearm
-            else:
-                d_c = rest_c[cn.index(child)] - rest_c[j]
-                c_j = R.between(d_c, a_mat @ d_s)
-        elif name in ("l_hand", "r_hand"):
-            c_j = align[cn[parent]]
-        align[name] = c_j
-        g_c[:, j] = R.mul(R.mul(R.mul(q_a, g_s[:, s]), R.conj(q_a)), c_j)
+        align[name] = rest.alignment(j, align)
+        g_c[:, j] = R.mul(R.mul(R.mul(q_a, g_s[:, idx[name]]), R.conj(q_a)), align[name])
 
     local = np.empty_like(g_c)
     for j, p in enumerate(CANONICAL.parents):
         local[:, j] = g_c[:, j] if p < 0 else R.mul(R.conj(g_c[:, p]), g_c[:, j])
+    root = _canonical_root(motion, idx, p0, a_mat, pelvis_pos_m, end_sites_m)
+    return HumanMotion(fps=motion.fps, rotations=R.normalize(local), root_pos_m=root, skeleton=CANONICAL)
 
+
+def _check_nesting(sk: Skeleton, idx: dict[str, int], source: str) -> None:
+    """Each mapped joint must sit below its canonical parent's source joint, or the composition is meaningless."""
+    cn = CANONICAL.names
+    for c, s in idx.items():
+        p = CANONICAL.parents[cn.index(c)]
+        while p >= 0 and cn[p] not in idx:
+            p = CANONICAL.parents[p]
+        if p >= 0 and s != idx[cn[p]] and _descendant_path(sk.parents, idx[cn[p]], s) is None:
+            raise InputError(
+                f"{source}: name map puts {c}->{sk.names[s]} outside {cn[p]}->{sk.names[idx[cn[p]]]}'s subtree. "
+                "Fix the name_map."
+            )
+
+
+@dataclass(frozen=True)
+class _RestPose:
+    """The source rest pose seen from the canonical skeleton: what turns each mapped source joint's frame so that
+    its bone points along the canonical bone (the rest-pose alignment of the module docstring)."""
+
+    sk: Skeleton
+    idx: dict[str, int]  # canonical joint -> source joint
+    p0: np.ndarray  # (J_s, 3) metres, source rest positions
+    a_mat: np.ndarray  # (3, 3) source axes -> canonical axes
+    end_sites_m: dict[int, np.ndarray]
+    rest_c: np.ndarray  # (J_c, 3) metres, canonical rest positions
+    source: str
+
+    def alignment(self, j: int, align: dict[str, np.ndarray]) -> np.ndarray:
+        """Quaternion (4,) for canonical joint ``j`` (mapped); ``align`` holds those of its mapped ancestors, which
+        a hand or a bone without a direction continues."""
+        cn = CANONICAL.names
+        name, parent = cn[j], CANONICAL.parents[j]
+        if name in _BONE_CHILD:
+            child = _BONE_CHILD[name]
+            d_s = self.bone_direction(self.idx[name], child)
+            if d_s is None or np.linalg.norm(d_s) < 1e-9:
+                if child in self.idx:
+                    raise InputError(
+                        f"{self.source}: {self.sk.names[self.idx[name]]} and {self.sk.names[self.idx[child]]} "
+                        f"coincide in the rest pose, so the {name} bone has no direction. Fix the name_map."
+                    )
+                return align[cn[parent]]  # hand continues the forearm
+            d_c = self.rest_c[cn.index(child)] - self.rest_c[j]
+            return R.between(d_c, self.a_mat @ d_s)
+        if name in ("l_hand", "r_hand"):
+            return align[cn[parent]]
+        return R.IDENTITY
+
+    def bone_direction(self, s: int, child: str) -> np.ndarray | None:
+        """Source rest direction (metres) from joint ``s`` towards canonical joint ``child``'s source joint; for a
+        wrist without a mapped hand, its End Site or the mean of its children's offsets."""
+        d_s = self.segment(s, self.idx[child]) if child in self.idx else None
+        if d_s is None and child not in self.idx:  # wrist without a mapped hand joint
+            kids = [k for k, p in enumerate(self.sk.parents) if p == s]
+            if s in self.end_sites_m and np.linalg.norm(self.end_sites_m[s]) > 1e-6:
+                d_s = self.end_sites_m[s]
+            elif kids:
+                d_s = np.mean(self.sk.offsets_m[kids], axis=0)
+        return d_s
+
+    def segment(self, j_src: int, target: int) -> np.ndarray | None:
+        """The first non-zero rest offset from ``j_src`` along the path down to ``target`` (None if not below)."""
+        path = _descendant_path(self.sk.parents, j_src, target)
+        for k in path or []:
+            d: np.ndarray = self.p0[k] - self.p0[j_src]
+            if np.linalg.norm(d) > 1e-6:
+                return d
+        return None
+
+
+def _canonical_root(
+    motion: HumanMotion,
+    idx: dict[str, int],
+    p0: np.ndarray,
+    a_mat: np.ndarray,
+    pelvis_pos_m: np.ndarray | None,
+    end_sites_m: dict[int, np.ndarray],
+) -> np.ndarray:
+    """Root position (T, 3), canonical world metres: the source pelvis in canonical axes, scaled to the canonical
+    pelvis height when the source has legs (its pelvis sits well above its lowest point)."""
     pelvis = motion.positions()[:, idx["pelvis"]] if pelvis_pos_m is None else np.asarray(pelvis_pos_m, float)
     heights = p0 @ a_mat[1]  # (J_s,) rest height along the source up axis
     if end_sites_m:
@@ -323,8 +366,8 @@ def map_to_canonical(
     drop = heights[idx["pelvis"]] - heights.min()
     trunk = heights[idx["head"]] - heights[idx["pelvis"]]
     k = CANONICAL_PELVIS_HEIGHT_M / drop if drop > 0.8 * trunk else 1.0  # legs present: normalise pelvis height
-    root = k * pelvis @ a_mat.T  # (T, 3) canonical world, metres
-    return HumanMotion(fps=motion.fps, rotations=R.normalize(local), root_pos_m=root, skeleton=CANONICAL)
+    root: np.ndarray = k * pelvis @ a_mat.T  # (T, 3) canonical world, metres
+    return root
 
 
 def map_bvh_to_canonical(

@@ -38,7 +38,8 @@ def mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def conj(q: np.ndarray) -> np.ndarray:
     """Inverse of a unit quaternion."""
     q = np.asarray(q, dtype=np.float64)
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
+    inverse: np.ndarray = q * np.array([1.0, -1.0, -1.0, -1.0])
+    return inverse
 
 
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -48,7 +49,8 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     w = q[..., :1]
     u = q[..., 1:]
     t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
+    rotated: np.ndarray = v + w * t + np.cross(u, t)
+    return rotated
 
 
 def to_matrix(q: np.ndarray) -> np.ndarray:
@@ -56,7 +58,8 @@ def to_matrix(q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=np.float64)
     flat = q.reshape(-1, 4)
     m = Rotation.from_quat(flat[:, [1, 2, 3, 0]]).as_matrix()
-    return m.reshape((*q.shape[:-1], 3, 3))
+    matrices: np.ndarray = m.reshape((*q.shape[:-1], 3, 3))
+    return matrices
 
 
 def from_matrix(m: np.ndarray) -> np.ndarray:
@@ -97,14 +100,17 @@ def from_euler(order: str, angles_rad: np.ndarray) -> np.ndarray:
         raise ValueError(f"Euler order must be 3 of X/Y/Z, got {order!r}")
     # Intrinsic a1-a2-a3 is the matrix product R_a1 @ R_a2 @ R_a3, i.e. q_a1 * q_a2 * q_a3; numpy here is ~20x
     # faster than scipy's from_euler on (T*J) batches.
-    q = None
-    for k, axis in enumerate(order):
-        half = 0.5 * angles_rad[..., k]
-        qk = np.zeros((*angles_rad.shape[:-1], 4))
-        qk[..., 0] = np.cos(half)
-        qk[..., 1 + "XYZ".index(axis)] = np.sin(half)
-        q = qk if q is None else mul(q, qk)
-    return normalize(q)
+    q1, q2, q3 = (_axis_quat(axis, angles_rad[..., k]) for k, axis in enumerate(order))
+    return normalize(mul(mul(q1, q2), q3))
+
+
+def _axis_quat(axis: str, angle_rad: np.ndarray) -> np.ndarray:
+    """Quaternions ``[..., 4]`` of rotations by ``angle_rad [...]`` about one of the axes X, Y, Z."""
+    half = 0.5 * angle_rad
+    q = np.zeros((*angle_rad.shape, 4))
+    q[..., 0] = np.cos(half)
+    q[..., 1 + "XYZ".index(axis)] = np.sin(half)
+    return q
 
 
 def to_euler(order: str, q: np.ndarray) -> np.ndarray:
@@ -112,7 +118,8 @@ def to_euler(order: str, q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=np.float64)
     flat = q.reshape(-1, 4)
     ang = Rotation.from_quat(flat[:, [1, 2, 3, 0]]).as_euler(order.upper())
-    return ang.reshape((*q.shape[:-1], 3))
+    angles_rad: np.ndarray = ang.reshape((*q.shape[:-1], 3))
+    return angles_rad
 
 
 def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray | float) -> np.ndarray:
