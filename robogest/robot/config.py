@@ -85,6 +85,7 @@ class _Strict(BaseModel):
     @classmethod
     def _numbers_are_numbers(cls, v: object, info: ValidationInfo) -> object:
         # Lax pydantic reads `true` as 1.0 and "3.0" as 3.0: a quoted or boolean number is a mistake, not a number.
+        assert info.field_name is not None  # a field validator ("*") always runs for a field
         bad = _mistyped(cls.model_fields[info.field_name].annotation, v)
         if bad is None:
             return v

@@ -92,7 +92,7 @@ def _merge_joints(base: list[dict[str, Any]], over: object, path: Path, name: st
     changes: dict[str, dict[str, Any]] = {}
     for k, j in enumerate(over):
         joint = j.get("name") if isinstance(j, dict) else None
-        if joint not in names:
+        if not isinstance(joint, str) or joint not in names:  # names are the base's, all str
             raise ConfigError(
                 f"{path}: key joints[{k}]: {joint!r} is not a joint of the base robot {name} (its joints: "
                 f"{', '.join(names)}); with base: a file changes its base's joints, it cannot add any"

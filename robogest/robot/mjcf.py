@@ -4,14 +4,18 @@ they agree on what the model is (a floating base welded standing, one-line error
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robogest.errors import ConfigError
 from robogest.robot.config import RobotConfig
 
+if TYPE_CHECKING:
+    import mujoco
 
-def load_mjcf(robot: RobotConfig):
+
+def load_mjcf(robot: RobotConfig) -> mujoco.MjModel:
     """``robot``'s MuJoCo model, compiled (``mujoco.MjModel``): the one loader of the IK, the simulator and the
     checks. ConfigError on one line naming the file when MuJoCo cannot load it (its parser's message spans lines).
 
@@ -27,7 +31,7 @@ def load_mjcf(robot: RobotConfig):
         ) from None
 
 
-def compile_mjcf(path: Path):
+def compile_mjcf(path: Path) -> mujoco.MjModel:
     """The MJCF file at ``path`` compiled as written (``mujoco.MjModel``, no base welded); MuJoCo's ValueError
     as it is. For checks that have a model path but no loaded robot; everything else uses :func:`load_mjcf`."""
     import mujoco
@@ -35,7 +39,7 @@ def compile_mjcf(path: Path):
     return mujoco.MjModel.from_xml_path(str(path))
 
 
-def _lowest_point_z(m, d, geoms: np.ndarray) -> float:
+def _lowest_point_z(m: mujoco.MjModel, d: mujoco.MjData, geoms: np.ndarray) -> float:
     """Lowest world z of ``geoms`` (ids) at the pose in ``d`` (after kinematics): exact per shape, meshes by their
     vertices; planes are skipped."""
     import mujoco
@@ -66,7 +70,7 @@ def _lowest_point_z(m, d, geoms: np.ndarray) -> float:
     return float(low)
 
 
-def _spec_body(spec, m, b: int):
+def _spec_body(spec: mujoco.MjSpec, m: mujoco.MjModel, b: int) -> mujoco.MjsBody:
     """The spec's body for model body ``b`` (same order), named if it was not (contact excludes name bodies)."""
     body = spec.bodies[b]
     if not body.name:
@@ -74,7 +78,7 @@ def _spec_body(spec, m, b: int):
     return body
 
 
-def weld_floating_base(m, path: Path):
+def weld_floating_base(m: mujoco.MjModel, path: Path) -> mujoco.MjModel:
     """``m`` (compiled from ``path``) with each free joint whose body carries hinge joints removed and that body
     welded to the world standing: at the free joint's pose in the ``home`` keyframe if there is one, else at the
     body's default pose moved up or down so that the robot's lowest point touches z = 0 (its feet on the floor).
@@ -90,7 +94,8 @@ def weld_floating_base(m, path: Path):
     d = mujoco.MjData(m)
     mujoco.mj_kinematics(m, d)  # qpos0: every free body at its default pose
     spec = mujoco.MjSpec.from_file(str(path))
-    drop_q, drop_v = [], []
+    drop_q: list[int] = []  # qpos and qvel entries of the removed free joints
+    drop_v: list[int] = []
     for j in free:
         b, qa = int(m.jnt_bodyid[j]), int(m.jnt_qposadr[j])
         if home >= 0:
@@ -119,7 +124,7 @@ def weld_floating_base(m, path: Path):
     return spec.compile()
 
 
-def joint_actuators(m, jid: int) -> list[int]:
+def joint_actuators(m: mujoco.MjModel, jid: int) -> list[int]:
     """Actuators of MuJoCo model ``m`` that drive joint ``jid`` directly (joint transmission)."""
     import mujoco
 
