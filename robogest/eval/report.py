@@ -6,10 +6,12 @@ The result is a nested dict of plain numbers and arrays; :func:`robogest.fileio.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +29,9 @@ from robogest.eval.kinematics import (
 )
 from robogest.eval.robot import joint_jerk, limit_violations, mask_runs, time_to_rest, tracking_error
 from robogest.fileio import atomic_path, to_jsonable
+
+if TYPE_CHECKING:
+    from robogest.trajectory.types import Trajectory
 
 #: Joints pooled for wrist histograms, wrist peaks and silence behaviour.
 WRIST_NAMES = ("l_wrist", "r_wrist")
@@ -100,17 +105,17 @@ def evaluate_motion(
         out["features_noise_floor"] = real_vs_real(gt_pos, fps)
     if audio_beats_s is not None:
         spans = list(silent_spans or ())
-        kw = {"wrists": wr, "n_shifts": n_shifts, "onsets_s": onsets_s, "silent_spans": spans}
-        out["beat_sync"] = beat_sync_report(pred_pos, fps, audio_beats_s, **kw)
+        sync = functools.partial(beat_sync_report, wrists=wr, n_shifts=n_shifts, onsets_s=onsets_s, silent_spans=spans)
+        out["beat_sync"] = sync(pred_pos, fps, audio_beats_s)
         if gt_pos is not None:
-            out["gt_beat_sync"] = beat_sync_report(gt_pos, fps, audio_beats_s, **kw)
+            out["gt_beat_sync"] = sync(gt_pos, fps, audio_beats_s)
     if silent_spans is not None and wr:
         out["silence"] = silence_behaviour(pred_pos, fps, list(silent_spans), wr)
     return out
 
 
 def evaluate_trajectory(
-    traj,
+    traj: Trajectory,
     gt_q_rad: np.ndarray | None = None,
     audio_beats_s: np.ndarray | None = None,
     silent_spans: Sequence[tuple[float, float]] | None = None,
@@ -189,81 +194,89 @@ def _stroke(d: dict) -> str:
 
 def summary_rows(result: dict) -> list[tuple[str, str]]:
     """Headline ``(metric, value)`` rows of one result, in a fixed order, for the printed table."""
-    rows: list[tuple[str, str]] = []
     if result["kind"] == "motion":
-        sets = result.get("paper_joint_sets", {})
-        p, r, where = result["pred"], result.get("ratio_to_gt"), "all joints"
-        if "gesticulator" in sets:  # the paper these statistics come from
-            g = sets["gesticulator"]
-            p, r, where = g["pred"], g.get("ratio_to_gt"), "Gesticulator joints"
+        return _motion_rows(result) + _reference_rows(result) + _beat_rows(result)
+    return _trajectory_rows(result) + _beat_rows(result)
+
+
+def _motion_rows(result: dict) -> list[tuple[str, str]]:
+    """Smoothness of a human motion (on the Gesticulator paper's joints when the result has them: the paper
+    these statistics come from) and its ratio to the ground truth."""
+    sets = result.get("paper_joint_sets", {})
+    p, r, where = result["pred"], result.get("ratio_to_gt"), "all joints"
+    if "gesticulator" in sets:
+        g = sets["gesticulator"]
+        p, r, where = g["pred"], g.get("ratio_to_gt"), "Gesticulator joints"
+    rows = [
+        (f"acceleration (cm/s², {where})", _fmt(p["acceleration_cm_s2"])),
+        (f"jerk (cm/s³, {where})", _fmt(p["jerk_cm_s3"])),
+    ]
+    if r is not None:
+        rows += [("acceleration / gt", _fmt(r["acceleration_ratio"])), ("jerk / gt", _fmt(r["jerk_ratio"]))]
+    if "wrist_speed" in result:
+        rows.append(("wrist speed Hellinger", _fmt(result["wrist_speed"]["hellinger"], 3)))
+    return rows
+
+
+def _reference_rows(result: dict) -> list[tuple[str, str]]:
+    """A human motion against its ground truth (joint errors, feature distances, FGD) and its silences."""
+    rows: list[tuple[str, str]] = []
+    if "maje_mad" in result:
+        m = result["maje_mad"]
+        note = f" ({m['dropped_frames']} frames truncated)" if m["dropped_frames"] else ""
+        mad = (f"MAD (mm/frame² at {m['fps']:g} fps)", _fmt(m["mad_mm_per_frame2"]))
+        rows += [("MAJE (mm)", _fmt(m["maje_mm"]) + note), mad]
+    if "maje_mad_s2ag" in result:
+        m = result["maje_mad_s2ag"]
         rows += [
-            (f"acceleration (cm/s², {where})", _fmt(p["acceleration_cm_s2"])),
-            (f"jerk (cm/s³, {where})", _fmt(p["jerk_cm_s3"])),
+            (f"MAJE, S2AG protocol (mm, {m['n_windows']} windows)", _fmt(m["maje_mm"])),
+            ("MAD, S2AG protocol (mm/frame² at 15 fps)", _fmt(m["mad_mm_per_frame2"])),
         ]
-        if r is not None:
-            rows += [("acceleration / gt", _fmt(r["acceleration_ratio"])), ("jerk / gt", _fmt(r["jerk_ratio"]))]
-        if "wrist_speed" in result:
-            rows.append(("wrist speed Hellinger", _fmt(result["wrist_speed"]["hellinger"], 3)))
-        if "maje_mad" in result:
-            m = result["maje_mad"]
-            note = f" ({m['dropped_frames']} frames truncated)" if m["dropped_frames"] else ""
-            mad = (f"MAD (mm/frame² at {m['fps']:g} fps)", _fmt(m["mad_mm_per_frame2"]))
-            rows += [("MAJE (mm)", _fmt(m["maje_mm"]) + note), mad]
-        if "maje_mad_s2ag" in result:
-            m = result["maje_mad_s2ag"]
-            rows += [
-                (f"MAJE, S2AG protocol (mm, {m['n_windows']} windows)", _fmt(m["maje_mm"])),
-                ("MAD, S2AG protocol (mm/frame² at 15 fps)", _fmt(m["mad_mm_per_frame2"])),
-            ]
-        if "features" in result:
-            f = result["features"]
-            floor = result.get("features_noise_floor", {})
-            rows += [
-                ("FD kinetic (real vs real)", f"{_fmt(f['fd_kinetic'])} ({_fmt(floor.get('fd_kinetic', math.nan))})"),
-                (
-                    "FD geometric (real vs real)",
-                    f"{_fmt(f['fd_geometric'])} ({_fmt(floor.get('fd_geometric', math.nan))})",
-                ),
-            ]
-            rows.append(
-                ("diversity kinetic (gt)", f"{_fmt(f['diversity_kinetic'])} ({_fmt(f['gt_diversity_kinetic'])})")
-            )
-        if "fgd" in result:
-            f = result["fgd"]
-            rows.append(("FGD, BEAT2 evaluator (real vs real)", f"{_fmt(f['fgd'], 4)} ({_fmt(f['real_vs_real'], 4)})"))
-        if "silence" in result:
-            s = result["silence"]
-            rows.append(
-                (
-                    "wrist speed silent / speech (cm/s)",
-                    f"{_fmt(s['silent_speed_cm_s'])} / {_fmt(s['speech_speed_cm_s'])}",
-                )
-            )
-    else:
-        lim = result["limits"]
-        for k in ("position", "velocity", "acceleration"):
-            rows.append((f"{k} limit violations (max excess)", f"{lim[k]['count']} ({_fmt(lim[k]['max_excess'], 4)})"))
-        rows.append(
-            (
-                "jerk mean / max (rad/s³)",
-                f"{_fmt(result['jerk']['mean_rad_s3'])} / {_fmt(result['jerk']['max_rad_s3'])}",
-            )
-        )
-        t = result["time_to_rest"]
-        rows.append(
-            (
-                "time to rest mean / max (s)",
-                f"{_fmt(t['mean_s'])} / {_fmt(t['max_s'])}, {t['n_unreached']}/{t['n_spans']} unreached",
-            )
-        )
-        if "joint_error" in result:
-            rows.append(("joint error vs gt RMS (rad)", _fmt(result["joint_error"]["rms_rad"], 4)))
-        if "tracking" in result:
-            rows.append(("tracking error RMS (rad)", _fmt(result["tracking"]["rms_rad"], 4)))
-        if "lexeme_entropy" in result:
-            e = result["lexeme_entropy"]
-            value = f"{_fmt(e['entropy_nats'])} ({_fmt(e['normalized'])} of log N_s, {e['n_blocks']} blocks)"
-            rows.append(("lexeme entropy (nats)", value))
+    if "features" in result:
+        f = result["features"]
+        floor = result.get("features_noise_floor", {})
+        rows += [
+            ("FD kinetic (real vs real)", f"{_fmt(f['fd_kinetic'])} ({_fmt(floor.get('fd_kinetic', math.nan))})"),
+            ("FD geometric (real vs real)", f"{_fmt(f['fd_geometric'])} ({_fmt(floor.get('fd_geometric', math.nan))})"),
+            ("diversity kinetic (gt)", f"{_fmt(f['diversity_kinetic'])} ({_fmt(f['gt_diversity_kinetic'])})"),
+        ]
+    if "fgd" in result:
+        f = result["fgd"]
+        rows.append(("FGD, BEAT2 evaluator (real vs real)", f"{_fmt(f['fgd'], 4)} ({_fmt(f['real_vs_real'], 4)})"))
+    if "silence" in result:
+        s = result["silence"]
+        speeds = f"{_fmt(s['silent_speed_cm_s'])} / {_fmt(s['speech_speed_cm_s'])}"
+        rows.append(("wrist speed silent / speech (cm/s)", speeds))
+    return rows
+
+
+def _trajectory_rows(result: dict) -> list[tuple[str, str]]:
+    """A robot trajectory: limit violations, jerk, time to rest, errors against a reference and the measured
+    motion, and its generator's lexeme entropy."""
+    lim = result["limits"]
+    rows = [
+        (f"{k} limit violations (max excess)", f"{lim[k]['count']} ({_fmt(lim[k]['max_excess'], 4)})")
+        for k in ("position", "velocity", "acceleration")
+    ]
+    jerk = result["jerk"]
+    rows.append(("jerk mean / max (rad/s³)", f"{_fmt(jerk['mean_rad_s3'])} / {_fmt(jerk['max_rad_s3'])}"))
+    t = result["time_to_rest"]
+    rest = f"{_fmt(t['mean_s'])} / {_fmt(t['max_s'])}, {t['n_unreached']}/{t['n_spans']} unreached"
+    rows.append(("time to rest mean / max (s)", rest))
+    if "joint_error" in result:
+        rows.append(("joint error vs gt RMS (rad)", _fmt(result["joint_error"]["rms_rad"], 4)))
+    if "tracking" in result:
+        rows.append(("tracking error RMS (rad)", _fmt(result["tracking"]["rms_rad"], 4)))
+    if "lexeme_entropy" in result:
+        e = result["lexeme_entropy"]
+        value = f"{_fmt(e['entropy_nats'])} ({_fmt(e['normalized'])} of log N_s, {e['n_blocks']} blocks)"
+        rows.append(("lexeme entropy (nats)", value))
+    return rows
+
+
+def _beat_rows(result: dict) -> list[tuple[str, str]]:
+    """Beat synchrony of the prediction and, for a motion with ground truth, of the ground truth (the bar)."""
+    rows: list[tuple[str, str]] = []
     if "beat_sync" in result:
         b = result["beat_sync"]
         rows.append((f"PMB δ={b['pmb']['delta_s']}s (%)", _sync(b["pmb"])))
