@@ -12,6 +12,7 @@ velocity, acceleration and jerk within limits whatever the target does.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,6 +20,9 @@ from robogest.generators.poses import DOF, N_DOF, dofs_to_rotations
 from robogest.motion.human_motion import HumanMotion
 from robogest.motion.skeleton import CANONICAL_PELVIS_HEIGHT_M
 from robogest.robot.config import RobotConfig
+
+if TYPE_CHECKING:
+    from robogest.retarget.base import Retargeter  # the package imports mujoco: only the IK needs it, and lazily
 
 
 @dataclass(frozen=True)
@@ -106,7 +110,13 @@ class IdleMotion:
         Tabulation rate of the cycles, frames/s.
     """
 
-    def __init__(self, robot: RobotConfig, config: IdleConfig | None = None, retargeter=None, fps: float = 25.0):
+    def __init__(
+        self,
+        robot: RobotConfig,
+        config: IdleConfig | None = None,
+        retargeter: Retargeter | None = None,
+        fps: float = 25.0,
+    ) -> None:
         from robogest.retarget import DirectionIK
 
         self.config = config or IdleConfig()

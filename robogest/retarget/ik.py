@@ -66,9 +66,10 @@ class DirectionIK(Retargeter):
             jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j.name)
             if jid < 0:
                 names = [m.joint(i).name for i in range(m.njnt)]
-                raise ConfigError(
-                    str(not_in_model(robot.path, f"joints[{k}].name", j.name, "joint", names, robot.model_path))
+                problem = not_in_model(
+                    robot.path or robot.name, f"joints[{k}].name", j.name, "joint", names, robot.model_path
                 )
+                raise ConfigError(str(problem))
             self.qadr[k] = m.jnt_qposadr[jid]
             self.dadr[k] = m.jnt_dofadr[jid]
         self.site_ids: list[tuple[int, int]] = []
@@ -78,7 +79,8 @@ class DirectionIK(Retargeter):
                 sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s)
                 if sid < 0:
                     names = [m.site(i).name for i in range(m.nsite)]
-                    problem = not_in_model(robot.path, f"retarget[{k}].robot", s, "site", names, robot.model_path)
+                    where = robot.path or robot.name
+                    problem = not_in_model(where, f"retarget[{k}].robot", s, "site", names, robot.model_path)
                     raise ConfigError(str(problem))
                 ids.append(sid)
             self.site_ids.append((ids[0], ids[1]))
@@ -121,7 +123,8 @@ class DirectionIK(Retargeter):
         a = np.stack([pos[:, idx(h0)] for h0, _ in self.human_pairs], axis=1)  # (T, K, 3)
         b = np.stack([pos[:, idx(h1)] for _, h1 in self.human_pairs], axis=1)
         d = b - a
-        return d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
+        unit: np.ndarray = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
+        return unit
 
     def _links(self, q: np.ndarray, with_jac: bool) -> tuple[np.ndarray, np.ndarray | None]:
         """Robot link directions ``(K, 3)`` and their Jacobians ``(K, 3, F)`` (free joints) at angles ``q (J,)``."""
@@ -215,7 +218,8 @@ class DirectionIK(Retargeter):
                 hi = mid
             else:
                 lo = mid
-        return q_free + lo * (q_new - q_free)
+        q_rad: np.ndarray = q_free + lo * (q_new - q_free)
+        return q_rad
 
     def retarget(self, motion: HumanMotion, q0: np.ndarray | None = None) -> RetargetResult:
         targets = self.human_directions(motion)  # (T, K, 3)

@@ -52,7 +52,7 @@ def summary(problems: list[Problem], where: object) -> str:
     return f"{said}{more}; `robogest robots validate {where}` lists every problem"
 
 
-def not_in_model(file: Path, key: str, name: str, kind: str, known: list[str], mjcf: Path) -> Problem:
+def not_in_model(file: Path | str, key: str, name: str, kind: str, known: list[str], mjcf: Path) -> Problem:
     """A YAML name the MJCF lacks, with the nearest MJCF name as the likely typo (also for the IK's refusal)."""
     near = difflib.get_close_matches(name, known, n=1)
     hint = f"did you mean {near[0]!r}? " if near else ""
