@@ -42,107 +42,56 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import ctypes
-import errno
 import hmac
 import itertools
 import json
 import logging
-import os
 import signal
 import socket
 import sys
-import time
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from http import HTTPStatus
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from urllib.parse import parse_qs, urlsplit
 
-from robogest.errors import BackendError, InputError, RobogestError
+from robogest.errors import BackendError
+from robogest.live.serve_connection import EVENT_POLL_S, Connection, Say, ServedRobot, peer_of
+from robogest.live.serve_limits import (
+    LOCAL_HOSTS,
+    MMAP_THRESHOLD_BYTES,
+    ServeLimits,
+    bind,
+    check_token,
+    map_large_blocks,
+    needs_token,
+    parse_listen,
+    release_freed_memory,
+)
+from robogest.live.serve_messages import PROTOCOL_VERSION
+
+if TYPE_CHECKING:
+    from websockets.asyncio.server import ServerConnection
+    from websockets.http11 import Request, Response
 
 log = logging.getLogger(__name__)
 
-PROTOCOL_VERSION = 1
-_EVENT_POLL_S = 0.02
 _WATCH_S = 0.05  #: how often the session's health is checked
-#: Hosts that need no token: the loopback interface by its usual names (127.0.0.2 is loopback too, but an address
-#: other than the default is a deliberate choice and gets the same rule as any other).
-LOCAL_HOSTS = ("127.0.0.1", "::1", "localhost")
 
-
-@dataclass(frozen=True)
-class ServeLimits:
-    """What one server accepts (CLI: ``--max-clients``, ``--max-say-chars``, ``--stream-buffer-s``).
-
-    max_clients : clients connected at once; one more is answered with an ``error`` and closed.
-    max_message_bytes : largest WebSocket message; a larger one closes that connection (code 1009).
-    max_say_chars : longest ``say`` text (5000 characters, about 5 minutes of speech; its preparation takes a few
-        seconds): a longer one is refused, so no say holds the robot's queue for minutes.
-    stream_buffer_s : seconds of audio a stream may hold ahead of what has played; a chunk past it is refused (the
-        stream goes on), so a client cannot pile up audio without bound.
-    """
-
-    max_clients: int = 8
-    max_message_bytes: int = 1 << 20
-    max_say_chars: int = 5000
-    stream_buffer_s: float = 60.0
-
-
-def parse_listen(text: str) -> tuple[str, int]:
-    """``HOST:PORT`` -> ``(host, port)``; InputError naming the fix."""
-    host, sep, port = text.rpartition(":")
-    try:
-        if not sep or not host:
-            raise ValueError
-        p = int(port)
-        if not 0 <= p <= 65535:
-            raise ValueError
-    except ValueError:
-        raise InputError(f"--listen {text!r}: expected HOST:PORT, e.g. 127.0.0.1:8765") from None
-    return host.strip("[]"), p
-
-
-def needs_token(host: str) -> bool:
-    """Every address but 127.0.0.1, ::1 and localhost needs a token."""
-    return host not in LOCAL_HOSTS
-
-
-def check_token(host: str, port: int, token: str | None) -> None:
-    if needs_token(host) and not token:
-        raise InputError(
-            f"--listen {host}:{port}: only 127.0.0.1, ::1 and localhost are served without a token (anyone who "
-            "reaches another address could move the robot); add --token SECRET (clients send "
-            "'Authorization: Bearer SECRET')"
-        )
-
-
-def bind(host: str, port: int) -> socket.socket:
-    """The listening socket, bound before the robot is opened: a busy address is one line and no torque."""
-    try:
-        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
-        family, _, _, _, addr = min(infos, key=lambda i: i[0] != socket.AF_INET)  # localhost: 127.0.0.1 first
-        return socket.create_server(addr[:2], family=family)
-    except OSError as e:
-        fix = (
-            "another robogest serve may be using it: stop that one or choose another port"
-            if e.errno == errno.EADDRINUSE
-            else "give an address of this machine, e.g. 127.0.0.1:8765"
-        )
-        why = os.strerror(e.errno) if (e.errno or 0) > 0 else (e.strerror or str(e))  # gaierror: negative codes
-        raise InputError(f"--listen {host}:{port}: cannot listen there ({why}); {fix}") from None
-
-
-_say_seq = itertools.count()
-
-
-@dataclass
-class _Say:
-    conn: _Connection
-    obj: dict
-    asked: int  #: the server's interrupt count when it came
-    seq: int = field(default_factory=lambda: next(_say_seq))  #: order of arrival
+__all__ = [
+    "LOCAL_HOSTS",
+    "MMAP_THRESHOLD_BYTES",
+    "PROTOCOL_VERSION",
+    "ServeLimits",
+    "Server",
+    "bind",
+    "check_token",
+    "map_large_blocks",
+    "needs_token",
+    "parse_listen",
+    "release_freed_memory",
+    "serve_forever",
+]
 
 
 class Server:
@@ -154,7 +103,7 @@ class Server:
 
     def __init__(
         self,
-        robot: Any,
+        robot: ServedRobot,
         host: str,
         port: int,
         *,
@@ -162,28 +111,28 @@ class Server:
         allow_origins: Sequence[str] = (),
         limits: ServeLimits | None = None,
         sock: socket.socket | None = None,
-        reopen: Callable[[], Any] | None = None,
+        reopen: Callable[[], ServedRobot] | None = None,
     ) -> None:
         check_token(host, port, token)
         self.robot = robot
         self.host, self.port = host, port
         self.sock = sock
         self.token = token
-        self.origins: list[str | None] = [None, *allow_origins]
+        self.allow_origins = tuple(allow_origins)  #: besides handshakes without an Origin (not from a browser)
         self.limits = limits or ServeLimits()
         self.reopen = reopen
-        self.connections: set[_Connection] = set()
+        self.connections: set[Connection] = set()
         #: Says waiting, per client (none empty), and the turn in which each client was last served (round-robin).
-        self._queues: dict[_Connection, deque[_Say]] = {}
-        self._served: dict[_Connection, int] = {}
+        self._queues: dict[Connection, deque[Say]] = {}
+        self._served: dict[Connection, int] = {}
         self._turn = itertools.count()
         self._wake = asyncio.Event()
-        self._interrupts = 0  #: interrupts so far: a say that came before one is dropped, not started after it
+        self.interrupts = 0  #: interrupts so far: a say that came before one is dropped, not started after it
         self.lost: str | None = None  #: why the robot's session died (None while it lives)
         self._stop: asyncio.Future | None = None
 
     # --- handshake ------------------------------------------------------------------------------------
-    def _check_token(self, connection: Any, request: Any) -> Any:
+    def _check_token(self, connection: ServerConnection, request: Request) -> Response | None:
         if not self.token:
             return None
         auth = request.headers.get("Authorization", "")
@@ -193,11 +142,11 @@ class Server:
             given = (parse_qs(urlsplit(request.path).query).get("token") or [""])[0]
         if given and hmac.compare_digest(given.encode(), self.token.encode()):
             return None
-        log.warning("refused %s: missing or wrong token", _peer(connection))
+        log.warning("refused %s: missing or wrong token", peer_of(connection))
         return connection.respond(HTTPStatus.UNAUTHORIZED, "missing or wrong token\n")
 
     # --- session --------------------------------------------------------------------------------------
-    async def run(self, ready: Any = None) -> None:
+    async def run(self, ready: Callable[[str, int], None] | None = None) -> None:
         """Serve until cancelled, SIGINT/SIGTERM/SIGHUP/SIGQUIT, or the session's death; ``ready(host, port)`` once
         listening.
 
@@ -207,12 +156,18 @@ class Server:
         reopened raises :class:`~robogest.errors.BackendError` (exit 5), also when a signal comes meanwhile.
         """
         from websockets.asyncio.server import serve
+        from websockets.typing import Origin
 
         from robogest.backends.control import HANDLED_SIGNALS, deliver_signal
 
         loop = asyncio.get_running_loop()
         stop: asyncio.Future = loop.create_future()
         self._stop = stop
+
+        def stop_on(sig: int) -> None:
+            if not stop.done():
+                stop.set_result(sig)
+
         taken: dict[int, Any] = {}
         for name in HANDLED_SIGNALS:
             sig = getattr(signal, name, None)
@@ -220,7 +175,7 @@ class Server:
             if sig is None or (name == "SIGHUP" and prev == signal.SIG_IGN):
                 continue
             try:
-                loop.add_signal_handler(sig, lambda s=sig: stop.done() or stop.set_result(s))
+                loop.add_signal_handler(sig, stop_on, sig)
             except (NotImplementedError, RuntimeError, ValueError):  # not the main thread, or no such support
                 continue
             taken[sig] = prev
@@ -228,7 +183,7 @@ class Server:
         tasks: list[asyncio.Task] = []
         try:
             async with serve(
-                self._handle, origins=self.origins, process_request=self._check_token,
+                self._handle, origins=[None, *map(Origin, self.allow_origins)], process_request=self._check_token,
                 max_size=self.limits.max_message_bytes, **where,
             ) as server:  # fmt: skip
                 sock = next(iter(server.sockets))
@@ -254,10 +209,10 @@ class Server:
         log.info("stopping on %s: the robot glides to rest", signal.Signals(outcome).name)
         deliver_signal(outcome)
 
-    async def _handle(self, ws: Any) -> None:
+    async def _handle(self, ws: ServerConnection) -> None:
         from websockets.exceptions import ConnectionClosed
 
-        peer = _peer(ws)
+        peer = peer_of(ws)
         origin = ws.request.headers.get("Origin") if ws.request is not None else None
         if len(self.connections) >= self.limits.max_clients:
             n = len(self.connections)
@@ -267,7 +222,7 @@ class Server:
                                           "it takes (--max-clients); try again later"}))  # fmt: skip
                 await ws.close(1013, "server busy")  # 1013: try again later
             return
-        conn = _Connection(self, ws, peer)
+        conn = Connection(self, ws, peer)
         self.connections.add(conn)
         log.info("client %s connected (origin %s)", peer, origin)
         await conn.send({"type": "hello", "protocol": PROTOCOL_VERSION, **self.status()})
@@ -334,11 +289,11 @@ class Server:
             return
 
     # --- says, round-robin ----------------------------------------------------------------------------
-    def enqueue(self, say: _Say) -> None:
+    def enqueue(self, say: Say) -> None:
         self._queues.setdefault(say.conn, deque()).append(say)
         self._wake.set()
 
-    def _next_say(self) -> _Say | None:
+    def _next_say(self) -> Say | None:
         """The first say of the client served longest ago (never: first), so each client gets its turn."""
         if not self._queues:
             return None
@@ -370,283 +325,7 @@ class Server:
                 await say.conn.error(f"say: internal error: {type(e).__name__}: {e}")
                 continue
             while h is not None and not h.done and self.lost is None:
-                await asyncio.sleep(_EVENT_POLL_S)
-
-
-def _peer(conn: Any) -> str:
-    addr = getattr(conn, "remote_address", None)
-    if isinstance(addr, tuple) and len(addr) >= 2:
-        return f"{addr[0]}:{addr[1]}"
-    return str(addr)
-
-
-class _Connection:
-    def __init__(self, server: Server, ws: Any, peer: str = "?") -> None:
-        self.server = server
-        self.ws = ws
-        self.peer = peer
-        self.stream: Any = None
-        self.stream_format = "int16"
-        self._fed_n = 0  #: samples fed to the open stream
-        self._played_t0: float | None = None  #: time.monotonic() its audio started playing
-        self._dropped = 0  #: its chunks refused for the buffer limit
-        self.tasks: set[asyncio.Task] = set()
-
-    @property
-    def robot(self) -> Any:
-        return self.server.robot  # a reopened session replaces it
-
-    async def send(self, obj: dict) -> None:
-        with contextlib.suppress(Exception):  # the client may be gone; the robot carries on
-            await self.ws.send(json.dumps(obj))
-
-    async def error(self, message: str) -> None:
-        log.warning("%s: %s", self.peer, message)
-        await self.send({"type": "error", "message": message})
-
-    def finish(self) -> None:
-        for t in self.tasks:
-            t.cancel()
-        if self.stream is not None:  # a client that vanished mid-stream: finish what it said
-            with contextlib.suppress(Exception):
-                self.stream.close()
-            self.stream = None
-
-    async def dispatch(self, msg: str | bytes) -> None:
-        try:
-            if isinstance(msg, bytes):
-                await self._pcm(msg)
-                return
-            obj = _parse(msg)
-            handler = getattr(self, "_on_" + obj["type"], None)
-            if handler is None:
-                raise InputError(
-                    f"unknown message type {obj['type']!r}; one of say, stream_start, words, stream_end, interrupt, "
-                    "status"
-                )
-            await handler(obj)
-        except RobogestError as e:
-            await self.error(str(e))
-        except Exception as e:  # a bug must not end the session: report it, keep serving
-            log.exception("%s: internal error", self.peer)
-            await self.error(f"internal error: {type(e).__name__}: {e}")
-
-    # --- messages -------------------------------------------------------------------------------------
-    async def _on_status(self, obj: dict) -> None:
-        await self.send({"type": "status", **self.server.status()})
-
-    async def _on_interrupt(self, obj: dict) -> None:
-        self.server._interrupts += 1  # says still waiting their turn are dropped
-        res = await asyncio.to_thread(self.robot.interrupt)
-        self._close_stream_state()
-        t0, t1 = res.get("interrupt_s"), res.get("at_rest_s")
-        log.info("%s: interrupt; at rest %s", self.peer, "(not reached)" if t1 is None else f"{t1 - t0:.2f} s after it")
-        await self.send({"type": "interrupted", **res})
-
-    async def _on_say(self, obj: dict) -> None:
-        text, audio, transcript = obj.get("text"), obj.get("audio"), obj.get("transcript")
-        for key, v in (("text", text), ("audio", audio), ("transcript", transcript)):
-            if v is not None and not isinstance(v, str):
-                raise InputError(f'say: "{key}" must be a string')
-        limit = self.server.limits.max_say_chars
-        if text is not None and len(text) > limit:
-            raise InputError(
-                f"say: text of {len(text)} characters is over the limit of {limit} (--max-say-chars); split it into "
-                "several says"
-            )
-        if not isinstance(obj.get("lenient", False), bool):
-            raise InputError('say: "lenient" must be true or false')
-        _check_id(obj)
-        _body(obj, "say")
-        self.server.check_alive("say")
-        self.server.enqueue(_Say(self, obj, self.server._interrupts))
-
-    async def start_say(self, say: _Say) -> Any:
-        """The say's turn: prepare it and start it playing; its handle (None: dropped or refused, client told)."""
-        obj = say.obj
-        if self.server._interrupts != say.asked:
-            await self.error("say: dropped, an interrupt came before it started")
-            return None
-        if self.server.lost is not None:
-            await self.error(f"say: refused, the robot session was lost ({self.server.lost})")
-            return None
-        try:  # say() only queues it; it is accepted once prepared (a bad file or tag: an error, not accepted)
-            h = self.robot.say(
-                obj.get("text"), audio=obj.get("audio"), transcript=obj.get("transcript"), wait=False,
-                lenient=obj.get("lenient", False), **_body(obj, "say"),
-            )  # fmt: skip
-            while not h.prepared:  # polled: the event loop never blocks on it
-                await asyncio.sleep(_EVENT_POLL_S / 4)
-            h.wait_started(0)  # raises what went wrong while preparing
-        except RobogestError as e:
-            await self.error(f"say: {e}")
-            return None
-        log.info("%s: say accepted as utterance %d", self.peer, h.id)
-        await self.send({"type": "accepted", "utterance": h.id, "id": obj.get("id")})
-        self.spawn(self._pump(h))
-        return h
-
-    async def _on_stream_start(self, obj: dict) -> None:
-        sr, fmt = obj.get("sample_rate", 16000), obj.get("format", "int16")
-        if not isinstance(sr, int) or isinstance(sr, bool):
-            raise InputError('stream_start: "sample_rate" must be an integer, Hz')
-        if fmt not in ("int16", "float32"):
-            raise InputError(f'stream_start: "format" {fmt!r} is not supported; use "int16" or "float32"')
-        _check_id(obj)
-        body = _body(obj, "stream_start")
-        self.server.check_alive("stream_start")
-        if self.stream is not None:
-            await asyncio.to_thread(self.stream.close)
-        self.stream = await asyncio.to_thread(self.robot.stream, sr, **body)
-        self.stream_format = fmt
-        self._fed_n, self._played_t0, self._dropped = 0, None, 0
-        h = self.stream.handle
-        log.info("%s: stream accepted as utterance %d (%d Hz %s)", self.peer, h.id, sr, fmt)
-        await self.send({"type": "accepted", "utterance": h.id, "id": obj.get("id")})
-        self.spawn(self._pump(h))
-
-    def _buffered_s(self, more_n: int) -> float:
-        """Seconds of the open stream's audio ahead of what has played, with ``more_n`` samples more."""
-        st = self.stream
-        if self._played_t0 is None:
-            ev = st.handle.event("audio_start")
-            self._played_t0 = None if ev is None else ev["t_monotonic_s"]
-        played_s = 0.0 if self._played_t0 is None else (time.monotonic() - self._played_t0) * self.robot.time_scale
-        return (self._fed_n + more_n) / st.sample_rate - played_s
-
-    async def _pcm(self, data: bytes) -> None:
-        if self.stream is None:
-            raise InputError('binary PCM without an open stream; send {"type": "stream_start"} first')
-        from robogest.speech.stream import pcm_to_float
-
-        width = 2 if self.stream_format == "int16" else 4
-        if len(data) % width:
-            raise InputError(f"PCM frame of {len(data)} bytes is not a whole number of {self.stream_format} samples")
-        limit = self.server.limits.stream_buffer_s
-        ahead = self._buffered_s(len(data) // width)
-        if ahead > limit:
-            msg = (
-                f"stream: this chunk would put {ahead:.1f} s of audio ahead of playback, over the {limit:g} s limit "
-                "(--stream-buffer-s); it was dropped: feed the stream no faster than it plays"
-            )
-            self._dropped += 1  # every chunk is answered; the log says it once a stream (a flood is many a second)
-            log.log(logging.WARNING if self._dropped == 1 else logging.DEBUG, "%s: %s", self.peer, msg)
-            await self.send({"type": "error", "message": msg})
-            return
-        chunk = pcm_to_float(data, self.stream_format)
-        await asyncio.to_thread(self.stream.feed, chunk)
-        self._fed_n += chunk.shape[0]
-
-    async def _on_words(self, obj: dict) -> None:
-        if self.stream is None:
-            raise InputError('words without an open stream; send {"type": "stream_start"} first')
-        words = obj.get("words")
-        if not isinstance(words, list):
-            raise InputError('words: "words" must be a list of [text, start_s, end_s]')
-        stream = self.stream
-        await asyncio.to_thread(stream.feed, b"", [tuple(w) if isinstance(w, list) else w for w in words])
-
-    async def _on_stream_end(self, obj: dict) -> None:
-        if self.stream is None:
-            raise InputError("stream_end without an open stream")
-        stream = self.stream
-        self._close_stream_state()
-        log.info("%s: stream utterance %d ended (%.1f s of audio)", self.peer, stream.handle.id,
-                 stream._offset_n / stream.sample_rate)  # fmt: skip
-        await asyncio.to_thread(stream.close)
-
-    def _close_stream_state(self) -> None:
-        self.stream, self._fed_n, self._played_t0 = None, 0, None
-
-    # --- events ---------------------------------------------------------------------------------------
-    def spawn(self, coro: Any) -> None:
-        t = asyncio.ensure_future(coro)
-        self.tasks.add(t)
-        t.add_done_callback(self.tasks.discard)
-
-    async def _pump(self, h: Any) -> None:
-        """Push the utterance's events as they happen, until it is done."""
-        seen: set[tuple] = set()
-        while True:
-            done = h.done
-            for e in h.events:
-                key = (e["type"], e["t_monotonic_s"], e.get("offset_s"))
-                if key not in seen:
-                    seen.add(key)
-                    await self.send({"type": "event", "utterance": h.id, "event": e["type"], **_plain(e)})
-            if done:
-                log.info("%s: utterance %d %s", self.peer, h.id, "interrupted" if h.interrupted else "done")
-                await asyncio.to_thread(release_freed_memory)
-                return
-            await asyncio.sleep(_EVENT_POLL_S)
-
-
-#: glibc's ``M_MMAP_THRESHOLD`` option of ``mallopt`` (malloc.h) and the value serve sets: blocks this large get
-#: their own mapping, returned to the system when freed.
-_M_MMAP_THRESHOLD = -3
-MMAP_THRESHOLD_BYTES = 256 * 1024
-
-
-def map_large_blocks() -> None:
-    """Have glibc give every block of :data:`MMAP_THRESHOLD_BYTES` or more its own mapping (elsewhere nothing).
-
-    Its default threshold rises after each large block freed, up to 32 MB, so a stream's growing audio and feature
-    arrays (19 MB of audio for 300 s, copied as it grows) end up in the heap, where they stay fragmented after the
-    stream ends; mapped, they go back to the system as soon as they are freed."""
-    with contextlib.suppress(Exception):  # not glibc
-        ctypes.CDLL(None).mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)
-
-
-def release_freed_memory() -> None:
-    """Give the free pages of the C heap back to the system (glibc's ``malloc_trim``; elsewhere nothing).
-
-    An utterance's arrays, freed when it ends, otherwise stay in the process's arenas: 150 s of streamed speech
-    left 41 MB resident, 2 MB after this (about 4 ms; ctypes releases the GIL meanwhile)."""
-    try:
-        trim = ctypes.CDLL(None).malloc_trim
-    except Exception:  # not glibc
-        return
-    trim(0)
-
-
-def _parse(msg: str) -> dict:
-    """A text frame as a JSON object with a string ``type``; InputError naming what is wrong, whatever the input
-    (Python's decoder raises RecursionError on deep nesting and ValueError on integers of over 4300 digits)."""
-    try:
-        obj = json.loads(msg)
-    except json.JSONDecodeError as e:
-        raise InputError(f"not JSON ({e.msg} at character {e.pos}); send one JSON object per text frame") from None
-    except RecursionError:
-        raise InputError("JSON nested too deeply to decode; send one flat JSON object per text frame") from None
-    except ValueError as e:  # "Exceeds the limit (4300 digits) for integer string conversion"
-        why = str(e).split(";")[0]
-        raise InputError(f"JSON with a number too long to decode ({why}); send plain numbers") from None
-    if not isinstance(obj, dict) or not isinstance(obj.get("type"), str):
-        raise InputError('a message must be a JSON object with a string "type"')
-    return obj
-
-
-def _check_id(obj: dict) -> None:
-    """The ``id`` echoed back: a string, an integer that fits 64 bits, or absent."""
-    i = obj.get("id")
-    if i is None or (isinstance(i, str) and len(i) <= 256) or (type(i) is int and abs(i) < 2**63):
-        return
-    raise InputError('"id" must be a string of at most 256 characters or an integer of 64 bits')
-
-
-def _body(obj: dict, what: str) -> dict:
-    """The message's per-utterance body language (``style``, ``amount``, ``gestures``), checked: InputError naming
-    the field."""
-    from robogest.live.style import body_language
-
-    body = {k: obj[k] for k in ("style", "amount", "gestures") if obj.get(k) is not None}
-    body_language(**body, what=what)
-    return body
-
-
-def _plain(e: dict) -> dict:
-    return {k: (float(v) if hasattr(v, "__float__") and not isinstance(v, bool | int) else v) for k, v in e.items()
-            if k != "type"}  # fmt: skip
+                await asyncio.sleep(EVENT_POLL_S)
 
 
 def serve_forever(server: Server, robot_name: str, backend: str) -> None:
