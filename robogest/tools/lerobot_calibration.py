@@ -143,11 +143,14 @@ def _overlay(robot: RobotConfig, out: Path) -> tuple[str, dict[str, Any]]:
     from robogest.robot.registry import find_base
 
     assert robot.path is not None
+    base_path: Path | None
     if robot.base is None:
         base, base_path, overlay = robot.path.stem, robot.path, {}
     else:
         base, base_path = robot.base, robot.base_path
         raw = load_yaml(read_text_capped(robot.path, what="robot file"))
+        if not isinstance(raw, dict):  # it loaded as a robot a moment ago: only a file changed meanwhile
+            raise InputError(f"{robot.path}: no longer a YAML mapping of robot keys; load it again")
         overlay = {k: v for k, v in raw.items() if k not in ("name", "base", "description")}
         if "model" in overlay:  # relative to the robot's folder, not necessarily the copy's
             overlay["model"] = str(robot.model_path)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +26,9 @@ from robogest.fileio import load_yaml, read_text_capped
 from robogest.robot.config import RobotConfig
 from robogest.robot.mjcf import compile_mjcf, load_mjcf
 from robogest.robot.problems import Problem, joint_problems, not_in_model, summary
+
+if TYPE_CHECKING:
+    import mujoco
 
 #: A retarget vector whose robot link points further than this from its human bone, on average over a short
 #: gesture sequence, is not being followed (a swapped site pair or a wrong ``retarget_frame_rpy_rad`` gives ~90-180°).
@@ -117,7 +121,7 @@ def require_followable(robot: RobotConfig) -> None:
         )
 
 
-def _site_problems(robot: RobotConfig, m, yml: Path, mjcf: Path) -> list[Problem]:
+def _site_problems(robot: RobotConfig, m: mujoco.MjModel, yml: Path, mjcf: Path) -> list[Problem]:
     """Every retarget site exists, and some YAML joint turns each vector's link."""
     import mujoco
 
@@ -151,7 +155,7 @@ def _site_problems(robot: RobotConfig, m, yml: Path, mjcf: Path) -> list[Problem
     return out
 
 
-def _home_problems(robot: RobotConfig, m, mjcf: Path) -> list[Problem]:
+def _home_problems(robot: RobotConfig, m: mujoco.MjModel, mjcf: Path) -> list[Problem]:
     """``home`` keyframe = YAML rest pose (qpos and ctrl), and no two robot parts touch at rest."""
     import mujoco
 
@@ -241,7 +245,7 @@ def _load_problems(name_or_path: str | Path, message: str) -> list[Problem]:
     try:
         raw = load_yaml(read_text_capped(path, what="robot file"))  # InputError: the load error says it already
         model = (path.parent / raw["model"]).resolve() if isinstance(raw, dict) and "model" in raw else None
-        if model is not None and model.is_file():
+        if isinstance(raw, dict) and model is not None and model.is_file():
             m = compile_mjcf(model)
             names = [m.joint(i).name for i in range(m.njnt)]
             for k, j in enumerate(raw.get("joints") or []):

@@ -15,10 +15,12 @@ import math
 import os
 import re
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import ModuleType
+from typing import Any
 
 from robogest.errors import InputError, MissingDependencyError
 from robogest.extras import install_command
@@ -50,7 +52,7 @@ class Description:
     floating: bool = False  # a floating base (a URDF floating joint or free root, an MJCF freejoint)
 
 
-def allowed_roots(path: Path, search_paths: list[Path]) -> list[Path]:
+def allowed_roots(path: Path, search_paths: Sequence[Path]) -> list[Path]:
     """The description's tree, then the folders the user names. The tree is the nearest ROS package at or above the
     file (a folder with ``package.xml`` or ``manifest.xml``, where ``urdf/`` sits beside ``meshes/``), else the
     folder above the file's (``robot/urdf/x.urdf`` with ``robot/meshes/``) unless that is a home folder, ``/tmp``,
@@ -96,7 +98,7 @@ def find_package(name: str, roots: list[Path]) -> Path | None:
     return None
 
 
-def read_description(path: Path, search_paths: list[Path] = ()) -> Description:
+def read_description(path: Path, search_paths: Sequence[Path] = ()) -> Description:
     """Read ``path`` (``.urdf``, ``.xacro``/``.urdf.xacro``, ``.xml``/``.mjcf``) and repair what real descriptions
     get wrong; an unreadable or foreign file is one :class:`InputError` naming it."""
     path = Path(path)
@@ -120,7 +122,7 @@ def read_description(path: Path, search_paths: list[Path] = ()) -> Description:
 
 
 @contextmanager
-def _confined_xacro(roots: list[Path], source: Path) -> Iterator[object]:
+def _confined_xacro(roots: list[Path], source: Path) -> Iterator[ModuleType]:
     """xacro with its file reads confined and capped, and ``$(find PKG)`` searched above the file (no ROS)."""
     try:
         import xacro
@@ -131,8 +133,9 @@ def _confined_xacro(roots: list[Path], source: Path) -> Iterator[object]:
         ) from None
     parse, find, load_yaml = xacro.parse, substitution_args._eval_find, xacro.load_yaml
 
-    def confined_parse(inp, filename=None):
+    def confined_parse(inp: str | None, filename: str | None = None) -> Any:
         if inp is None:
+            assert filename is not None  # xacro names the file whenever it passes no text
             real = confined(Path(filename), roots, "xacro include", source)
             inp = read_text_capped(real, what="xacro include")
         return parse(inp, filename)
@@ -144,7 +147,7 @@ def _confined_xacro(roots: list[Path], source: Path) -> Iterator[object]:
                              "name the folder that holds it with --search-path DIR")  # fmt: skip
         return str(found)
 
-    def confined_yaml(filename):
+    def confined_yaml(filename: str) -> Any:
         confined(Path(xacro.abs_filename_spec(filename)), roots, "xacro yaml file", source)
         return load_yaml(filename)
 
@@ -167,7 +170,7 @@ def _expand_xacro(path: Path, roots: list[Path]) -> str:
         except InputError:
             raise
         except Exception as e:  # xacro raises XacroException, NameError, ExpatError... for a broken file
-            inner = e
+            inner: BaseException | None = e
             while inner is not None and not isinstance(inner, InputError):  # ours, wrapped by xacro
                 inner = getattr(inner, "exc", None) or inner.__cause__ or inner.__context__
             if inner is not None:
@@ -175,7 +178,8 @@ def _expand_xacro(path: Path, roots: list[Path]) -> str:
             raise InputError(
                 f"{path}: xacro cannot expand it: {' '.join(str(e).split()) or type(e).__name__}"
             ) from None
-    return doc.toxml()
+    expanded: str = doc.toxml()
+    return expanded
 
 
 def _limit(j: ET.Element) -> ET.Element:
@@ -199,67 +203,94 @@ def _repair_urdf(desc: Description) -> None:
         root.remove(el)
     if dropped:
         warn(f"{len(dropped)} gazebo/transmission/ros2_control elements ignored (simulator plugins)")
-    reversed_, zero_v, zero_e, welded = [], [], [], []
+    fixed = _JointRepairs()
     for j in root.iter("joint"):
-        kind, name = j.get("type"), j.get("name", "?")
-        if kind == "continuous":
-            j.set("type", "revolute")
-            lim = _limit(j)
-            lim.set("lower", f"{-math.pi:.9f}")
-            lim.set("upper", f"{math.pi:.9f}")
-            warn(f"continuous joint {name!r}: limited to one turn [-pi, pi]")
-        elif kind == "floating":
-            desc.floating = True
-            j.set("type", "fixed")
-        elif kind in ("prismatic", "planar"):
-            j.set("type", "fixed")
-            welded.append(name)
-        if j.get("type") != "revolute":
-            continue
-        lim = _limit(j)
-        lo, hi = _num(lim, "lower", 0.0), _num(lim, "upper", 0.0)
-        if lo > hi:
-            lim.set("lower", repr(hi))
-            lim.set("upper", repr(lo))
-            reversed_.append(name)
-        elif lo == hi:
-            lim.set("lower", "-1.5707963")
-            lim.set("upper", "1.5707963")
-            warn(f"joint {name!r} has no range (lower = upper = {lo:g}): given [-pi/2, pi/2]; check it")
-        if _num(lim, "velocity", 0.0) <= 0:
-            zero_v.append(name)
-        if _num(lim, "effort", 0.0) <= 0:
-            lim.set("effort", "0")
-            zero_e.append(name)
-    if reversed_:
-        warn(f"joints {reversed_} have lower above upper (a reversed servo range?): the two are swapped")
-    if zero_v:
-        warn(f"joints {zero_v} give no velocity limit: sized as an STS3215 (4.72 rad/s)")
-    if welded:
-        warn(f"prismatic/planar joints {welded} (grippers?) welded in place: robogest drives hinges only")
+        name = j.get("name", "?")
+        _repair_kind(desc, j, name, fixed)
+        if j.get("type") == "revolute":
+            _repair_limits(j, name, fixed, warn)
+    if fixed.reversed:
+        warn(f"joints {fixed.reversed} have lower above upper (a reversed servo range?): the two are swapped")
+    if fixed.no_velocity:
+        warn(f"joints {fixed.no_velocity} give no velocity limit: sized as an STS3215 (4.72 rad/s)")
+    if fixed.welded:
+        warn(f"prismatic/planar joints {fixed.welded} (grippers?) welded in place: robogest drives hinges only")
     if desc.floating:
         warn("the base floats (a floating joint): it stands welded at standing height, feet on the floor")
-    light = []
-    for link in root.iter("link"):
-        inertial = link.find("inertial")
-        mass = inertial.find("mass") if inertial is not None else None
-        if inertial is not None and (mass is None or _num(mass, "value", 0.0) <= 0):
-            link.remove(inertial)  # MuJoCo gives a massless link a small mass of its own
-            inertial = None
-            light.append(link.get("name", "?"))
-        if inertial is not None:
-            inertia = inertial.find("inertia")
-            if inertia is None or min(_num(inertia, k, 0.0) for k in ("ixx", "iyy", "izz")) <= 0:
-                if inertia is not None:
-                    inertial.remove(inertia)
-                m = _num(mass, "value", 0.01)
-                ET.SubElement(inertial, "inertia", ixx=f"{m * 1e-4:g}", iyy=f"{m * 1e-4:g}", izz=f"{m * 1e-4:g}",
-                              ixy="0", ixz="0", iyz="0")  # fmt: skip
-                light.append(link.get("name", "?"))
+    light = [lk for link in root.iter("link") if (lk := _repair_inertial(link)) is not None]
     if light:
         warn(
             f"links {light} have zero mass or zero inertia: given a small one (the sim needs it; retargeting does not)"
         )
+
+
+@dataclass
+class _JointRepairs:
+    """Joints :func:`_repair_urdf` changed, by what it did (told in one warning each)."""
+
+    reversed: list[str] = field(default_factory=list)  # lower above upper: swapped
+    no_velocity: list[str] = field(default_factory=list)  # sized as the default servo
+    no_effort: list[str] = field(default_factory=list)  # effort set to 0 (sized later)
+    welded: list[str] = field(default_factory=list)  # prismatic/planar made fixed
+
+
+def _repair_kind(desc: Description, j: ET.Element, name: str, fixed: _JointRepairs) -> None:
+    """A continuous joint becomes a revolute one of one turn (warned at once); a floating one makes the base float
+    (welded standing later); prismatic and planar joints are welded (robogest drives hinges only)."""
+    kind = j.get("type")
+    if kind == "continuous":
+        j.set("type", "revolute")
+        lim = _limit(j)
+        lim.set("lower", f"{-math.pi:.9f}")
+        lim.set("upper", f"{math.pi:.9f}")
+        desc.warnings.append(f"continuous joint {name!r}: limited to one turn [-pi, pi]")
+    elif kind == "floating":
+        desc.floating = True
+        j.set("type", "fixed")
+    elif kind in ("prismatic", "planar"):
+        j.set("type", "fixed")
+        fixed.welded.append(name)
+
+
+def _repair_limits(j: ET.Element, name: str, fixed: _JointRepairs, warn: Callable[[str], None]) -> None:
+    """A revolute joint's ``<limit>``: a reversed range swapped, an empty one widened to [-pi/2, pi/2] (warned at
+    once), and a missing velocity or effort noted (the servo sizing fills them in)."""
+    lim = _limit(j)
+    lo, hi = _num(lim, "lower", 0.0), _num(lim, "upper", 0.0)
+    if lo > hi:
+        lim.set("lower", repr(hi))
+        lim.set("upper", repr(lo))
+        fixed.reversed.append(name)
+    elif lo == hi:
+        lim.set("lower", "-1.5707963")
+        lim.set("upper", "1.5707963")
+        warn(f"joint {name!r} has no range (lower = upper = {lo:g}): given [-pi/2, pi/2]; check it")
+    if _num(lim, "velocity", 0.0) <= 0:
+        fixed.no_velocity.append(name)
+    if _num(lim, "effort", 0.0) <= 0:
+        lim.set("effort", "0")
+        fixed.no_effort.append(name)
+
+
+def _repair_inertial(link: ET.Element) -> str | None:
+    """A link's ``<inertial>`` without mass removed (MuJoCo gives a massless link a small mass of its own), one
+    without a positive inertia given a small one; the link's name if either was done, else None."""
+    inertial = link.find("inertial")
+    if inertial is None:
+        return None
+    mass = inertial.find("mass")
+    if mass is None or _num(mass, "value", 0.0) <= 0:
+        link.remove(inertial)
+        return link.get("name", "?")
+    inertia = inertial.find("inertia")
+    if inertia is not None and min(_num(inertia, k, 0.0) for k in ("ixx", "iyy", "izz")) > 0:
+        return None
+    if inertia is not None:
+        inertial.remove(inertia)
+    m = _num(mass, "value", 0.01)
+    ET.SubElement(inertial, "inertia", ixx=f"{m * 1e-4:g}", iyy=f"{m * 1e-4:g}", izz=f"{m * 1e-4:g}",
+                  ixy="0", ixz="0", iyz="0")  # fmt: skip
+    return link.get("name", "?")
 
 
 def _servo_models(desc: Description) -> dict[str, str]:
@@ -272,9 +303,8 @@ def _servo_models(desc: Description) -> dict[str, str]:
         for j in desc.root.iter("joint"):
             child = j.find("child")
             link = links.get(child.get("link")) if child is not None else None
-            meshes = [m.get("filename", "") for m in link.iter("mesh")] if link is not None else []
-            text_of[j.get("name", "")] = " ".join([j.get("name", ""), *(link.get("name", ""),) * (link is not None),
-                                                  *meshes])  # fmt: skip
+            own = [] if link is None else [link.get("name", ""), *(m.get("filename", "") for m in link.iter("mesh"))]
+            text_of[j.get("name", "")] = " ".join([j.get("name", ""), *own])
     else:
         for body in desc.root.iter("body"):
             for j in body.findall("joint"):

@@ -96,7 +96,7 @@ def convert(src: Path, dst: Path) -> None:
         ) from None
     read_bytes_capped(src, MAX_MESH_BYTES, what="mesh")  # a regular file of a sane size, before trimesh opens it
     try:
-        data = trimesh.load(str(src), force="mesh").export(file_type="stl")
+        data = trimesh.load(str(src), force="mesh").export(None, file_type="stl")  # None: return the bytes
     except MemoryError:
         raise
     except Exception as e:  # trimesh and pycollada raise many kinds for a broken file

@@ -12,10 +12,17 @@ from __future__ import annotations
 import itertools
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robogest.errors import InputError
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from robogest.tools.importer.parts import Limb
 
 #: Servo model the actuators are scaled from when the description gives no effort/velocity: STS3215 at 12 V.
 DEFAULT_EFFORT_NM = 2.94
@@ -24,7 +31,13 @@ DEFAULT_VELOCITY_RAD_S = 4.72
 MM_EXTENT_M = 3.0
 
 
-def compile_xml(mj: ET.Element, source: object):
+def child(el: ET.Element, tag: str) -> ET.Element:
+    """``el``'s first ``<tag>`` child, added if it has none (the additions go into the existing one)."""
+    found = el.find(tag)
+    return found if found is not None else ET.SubElement(el, tag)
+
+
+def compile_xml(mj: ET.Element, source: object) -> mujoco.MjModel:
     """The MjModel of an MJCF tree; MuJoCo's complaint as one InputError line naming the description."""
     import mujoco
 
@@ -41,8 +54,7 @@ def urdf_to_mjcf(root: ET.Element, meshdir: str, source: object) -> ET.Element:
             for vis in link.findall("visual"):
                 col = ET.SubElement(link, "collision")
                 col.extend(c for c in vis if c.tag in ("origin", "geometry"))
-    ext = root.find("mujoco") if root.find("mujoco") is not None else ET.SubElement(root, "mujoco")
-    comp = ext.find("compiler") if ext.find("compiler") is not None else ET.SubElement(ext, "compiler")
+    comp = child(child(root, "mujoco"), "compiler")
     comp.attrib.update(discardvisual="false", strippath="false", fusestatic="false", meshdir=meshdir)
     return normalise_mjcf(root, source)
 
@@ -62,7 +74,7 @@ def normalise_mjcf(mj: ET.Element, source: object) -> ET.Element:
         raise InputError(f"{source}: MuJoCo cannot load it: {' '.join(str(e).split())}") from None
 
 
-def fix_millimetres(mj: ET.Element, m, warnings: list[str]) -> bool:
+def fix_millimetres(mj: ET.Element, m: mujoco.MjModel, warnings: list[str]) -> bool:
     """Meshes drawn in millimetres (an extent over :data:`MM_EXTENT_M`) are scaled by 0.001; True if any was."""
     scaled = []
     for i in range(m.nmesh):
@@ -91,7 +103,9 @@ def weld_free_joints(mj: ET.Element) -> bool:
     return found
 
 
-def actuate(mj: ET.Element, m, joints: list[str], velocity: dict[str, float], warnings: list[str]) -> None:
+def actuate(
+    mj: ET.Element, m: mujoco.MjModel, joints: list[str], velocity: dict[str, float], warnings: list[str]
+) -> None:
     """A servo-like position actuator on every hinge (replacing any the model had); damping, armature and
     friction scaled from its torque."""
     defaulted = []
@@ -120,7 +134,7 @@ def actuate(mj: ET.Element, m, joints: list[str], velocity: dict[str, float], wa
                         f"({DEFAULT_EFFORT_NM} N*m)")  # fmt: skip
 
 
-def own_position_actuators(m, joints: list[str]) -> bool:
+def own_position_actuators(m: mujoco.MjModel, joints: list[str]) -> bool:
     """Every hinge has exactly one position actuator of its own, with a control and force range: keep them."""
     import mujoco
 
@@ -137,10 +151,10 @@ def own_position_actuators(m, joints: list[str]) -> bool:
         kp = m.actuator_gainprm[a, 0]
         if not (m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE and kp > 0 and m.actuator_forcelimited[a]):
             return False
-    return m.nu == len(joints)
+    return bool(m.nu == len(joints))
 
 
-def adopt_actuators(mj: ET.Element, m, joints: list[str], warnings: list[str]) -> None:
+def adopt_actuators(mj: ET.Element, m: mujoco.MjModel, joints: list[str], warnings: list[str]) -> None:
     """Keep the model's own position servos, with their control range cut to the joint's range (a servo is never
     sent past its joint) and, where the joint has none, damping and armature sized from the servo's force limit."""
     act_of = {m.joint(int(m.actuator_trnid[a, 0])).name: a for a in range(m.nu)}
@@ -168,7 +182,7 @@ def adopt_actuators(mj: ET.Element, m, joints: list[str], warnings: list[str]) -
                         "servo's force limit, like an STS3215")  # fmt: skip
 
 
-def start_pose(m, joints: list[str], keyframe: dict[str, float] | None = None) -> dict[str, float]:
+def start_pose(m: mujoco.MjModel, joints: list[str], keyframe: dict[str, float] | None = None) -> dict[str, float]:
     """Where held joints stand and the rest search starts: a standing keyframe's angle, else the pose the
     description is drawn in (joint zero, moved into the range where it lies outside)."""
     rest = {}
@@ -179,7 +193,7 @@ def start_pose(m, joints: list[str], keyframe: dict[str, float] | None = None) -
     return rest
 
 
-def pose_data(m, pose: dict[str, float]):
+def pose_data(m: mujoco.MjModel, pose: dict[str, float]) -> mujoco.MjData:
     import mujoco
 
     d = mujoco.MjData(m)
@@ -189,7 +203,7 @@ def pose_data(m, pose: dict[str, float]):
     return d
 
 
-def exclude_touching(mj: ET.Element, m, pose: dict[str, float], warnings: list[str]) -> None:
+def exclude_touching(mj: ET.Element, m: mujoco.MjModel, pose: dict[str, float], warnings: list[str]) -> None:
     """Parts that already overlap in the start pose (meshes meeting at a servo horn) are a modelling artefact, not
     a collision to avoid: exclude those body pairs from contact, and a welded base from the links its joints turn."""
     d = pose_data(m, pose)
@@ -212,7 +226,7 @@ def exclude_touching(mj: ET.Element, m, pose: dict[str, float], warnings: list[s
         warnings.append(f"{len(near)} body pairs at most {NEAR_HINGES} joints apart (a hand and the gear beside its "
                         "wrist) cannot meet in a gesture: their contacts are excluded")  # fmt: skip
     if pairs or joined or near:
-        contact = mj.find("contact") if mj.find("contact") is not None else ET.SubElement(mj, "contact")
+        contact = child(mj, "contact")
         for a, b in sorted(set(pairs) | joined | near):
             ET.SubElement(contact, "exclude", body1=a, body2=b)
 
@@ -221,7 +235,7 @@ def exclude_touching(mj: ET.Element, m, pose: dict[str, float], warnings: list[s
 NEAR_HINGES = 2
 
 
-def _near_pairs(m) -> set[tuple[str, str]]:
+def _near_pairs(m: mujoco.MjModel) -> set[tuple[str, str]]:
     """Body pairs with geoms, not parent and child (MuJoCo skips those), at most :data:`NEAR_HINGES` hinges apart."""
     with_geoms = sorted({int(b) for b in m.geom_bodyid if m.body_rootid[b] != 0})
     up = {}
@@ -245,11 +259,11 @@ def _near_pairs(m) -> set[tuple[str, str]]:
     return out
 
 
-def add_sites(mj: ET.Element, limbs) -> list[tuple[str, str, str, str, float]]:
+def add_sites(mj: ET.Element, limbs: Sequence[Limb]) -> list[tuple[str, str, str, str, float]]:
     """Sites on the bodies; the retarget vectors (human from, human to, site from, site to, weight) between them.
     One arm is mapped to the human right arm; the head's neck->head and head->nose directions follow it."""
     bodies = {b.get("name"): b for b in mj.iter("body")}
-    world = mj.find("worldbody")
+    world = child(mj, "worldbody")
     arms = [lb for lb in limbs if lb.part != "head"]
     vectors = []
     for limb in limbs:
@@ -276,7 +290,7 @@ def turn_and_stand(mj: ET.Element, yaw: float, lift_m: float) -> None:
     """Turn the whole robot by ``-yaw`` about Z (its front to +X) and raise it by ``lift_m`` (feet on the floor)."""
     c, s = math.cos(-yaw / 2), math.sin(-yaw / 2)
     rz = np.array([[math.cos(-yaw), -math.sin(-yaw), 0], [math.sin(-yaw), math.cos(-yaw), 0], [0, 0, 1]])
-    for body in mj.find("worldbody").findall("body"):
+    for body in child(mj, "worldbody").findall("body"):
         pos = rz @ np.array([float(x) for x in body.get("pos", "0 0 0").split()]) + [0.0, 0.0, lift_m]
         if body.get("quat") is None and any(body.get(k) for k in ("euler", "axisangle", "xyaxes", "zaxis")):
             raise InputError(f"body {body.get('name')!r}: orientation given as euler/axisangle; write it as quat")
@@ -285,7 +299,7 @@ def turn_and_stand(mj: ET.Element, yaw: float, lift_m: float) -> None:
         body.set("quat", " ".join(f"{t:.6g}" for t in [c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w]))
 
 
-def geom_boxes(m, d) -> tuple[np.ndarray, np.ndarray]:
+def geom_boxes(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
     """``(G, 3)`` lower and upper corners of each geom's world-axis bounding box (its local box, turned)."""
     rot = d.geom_xmat.reshape(-1, 3, 3)
     centre = d.geom_xpos + np.einsum("gij,gj->gi", rot, m.geom_aabb[:, :3])
@@ -293,7 +307,7 @@ def geom_boxes(m, d) -> tuple[np.ndarray, np.ndarray]:
     return centre - half, centre + half
 
 
-def lowest_point(m, d) -> float:
+def lowest_point(m: mujoco.MjModel, d: mujoco.MjData) -> float:
     """The lowest point of the robot's geoms (world z)."""
     robot = m.body_rootid[m.geom_bodyid] != 0
     return float(geom_boxes(m, d)[0][robot, 2].min()) if robot.any() else 0.0
@@ -307,7 +321,7 @@ def header(source: str, guesses: list[str]) -> str:
     )
 
 
-def scene(m, d, name: str, robot_file: str) -> str:
+def scene(m: mujoco.MjModel, d: mujoco.MjData, name: str, robot_file: str) -> str:
     """Floor under the robot's lowest point, a light and a skybox. No camera: videos and renders of a scene without
     one are filmed by :func:`robogest.backends.render.framing_camera`, facing the robot and framing its upper body
     at any frame size (a fixed camera written here framed the whole robot, pedestal and legs, from one side)."""
@@ -318,9 +332,9 @@ def scene(m, d, name: str, robot_file: str) -> str:
         lo, hi = np.zeros(3), np.zeros(3)
     floor = min(0.0, float(lo[2]))
     centre = 0.5 * (lo + hi)
-    size = float(max(np.linalg.norm(hi - lo), 0.2))
+    size = max(float(np.linalg.norm(hi - lo)), 0.2)
 
-    def v(a) -> str:
+    def v(a: np.ndarray) -> str:
         return " ".join(f"{t:.4g}" for t in a)
 
     light = centre + size * np.array([0.6, 0.4, 2.0])

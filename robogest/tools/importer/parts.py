@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robogest.errors import InputError
 from robogest.tools.importer.model import geom_boxes
+
+if TYPE_CHECKING:
+    import mujoco
 
 #: Words in joint or link names that say what a chain is (used after the tree, to break ties and name sides).
 _WORDS = {
@@ -60,7 +64,7 @@ class Parts:
 class _Tree:
     """The compiled model's bodies, hinge joints and the points they sit at, at the pose in ``d``."""
 
-    def __init__(self, m, d, joints: list[str]):
+    def __init__(self, m: mujoco.MjModel, d: mujoco.MjData, joints: list[str]) -> None:
         self.m, self.d = m, d
         self.jids = [m.joint(j).id for j in joints]
         self.jset = set(self.jids)
@@ -77,7 +81,7 @@ class _Tree:
         self.height = max(float(self.hi[2] - self.lo[2]), 1e-3)
 
     def name(self, j: int) -> str:
-        return self.m.joint(j).name
+        return str(self.m.joint(j).name)
 
     def chain(self, body: int) -> list[int]:
         """Hinge joints from the root down to ``body``, root first."""
@@ -95,7 +99,8 @@ class _Tree:
     def tip(self, leaf: int, last: np.ndarray) -> np.ndarray:
         """The end of a leaf link: its geoms' point farthest from ``last`` (the link's origin if it has none)."""
         m, d = self.m, self.d
-        best, far = d.xpos[leaf].copy(), float(np.linalg.norm(d.xpos[leaf] - last))
+        best: np.ndarray = d.xpos[leaf].copy()
+        far = float(np.linalg.norm(d.xpos[leaf] - last))
         for g in range(m.ngeom):
             if m.geom_bodyid[g] != leaf:
                 continue
@@ -107,8 +112,10 @@ class _Tree:
         return best
 
     def local(self, body: int, world: np.ndarray) -> tuple[str, np.ndarray]:
+        """Body ``body``'s name and the point ``world`` in its frame."""
         xmat = self.d.xmat[body].reshape(3, 3)
-        return self.m.body(body).name, xmat.T @ (world - self.d.xpos[body])
+        local: np.ndarray = xmat.T @ (world - self.d.xpos[body])
+        return str(self.m.body(body).name), local
 
 
 def _ordered(tree: _Tree, joints: set[int]) -> list[int]:
@@ -125,7 +132,7 @@ def _side(text: str) -> str | None:
     return hits[0] if len(hits) == 1 else None
 
 
-def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
+def find_parts(m: mujoco.MjModel, d: mujoco.MjData, joints: list[str], overrides: dict) -> Parts:
     """Legs, waist, arms, head, fingers of the model at the pose in ``d``; ``overrides`` (``arms: {left: [..],
     right: [..]}``, ``head: [..]``, ``forward: "+y"``) replace a guess. Raises InputError for an override naming a
     joint the model lacks, or when no arm is found."""
@@ -140,10 +147,52 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
     chains = {leaf: c for leaf, c in chains.items() if c}
     if not chains:
         raise InputError("no revolute or continuous joints; robogest drives hinge joints")
-    rows: list[tuple[str, list[str], str]] = []
-    held: dict[str, str] = {}
+    table = _Table()
+    feet, upper, legs, hips = _lower_body(tree, chains, table)
+    limbs, trunk = _upper_limbs(tree, chains, upper, legs)
+    arms, head = _pick(tree, limbs, overrides)
+    if overrides.get("head"):
+        head = (set(tree.m.joint(n).id for n in overrides["head"]), head[1] if head else [])
+    picked: set[int] = set().union(*(a[0] for a in arms)) if arms else set()
+    if not arms:
+        raise InputError("found no chain of 2 or more joints spaced apart to map a human arm onto; "
+                         "name the arm joints with --arm left=J1,J2,... --arm right=...")  # fmt: skip
+    forward, why = _forward(tree, arms, feet, chains, legs, overrides.get("forward"))
+    out_arms = _arm_limbs(tree, arms, forward, overrides)
+    if len(out_arms) == 1 and not feet and head is None and not overrides.get("forward"):
+        forward, why = _reach_forward(tree, out_arms[0], forward, why)
+    for a in out_arms:
+        table.rows.append((a.part, a.joints, a.reason))
+    arm_ids = {tree.m.joint(n).id for a in out_arms for n in a.joints}
+    head_limb = _head(tree, head, forward, arm_ids) if head else None
+    fingers = picked - arm_ids
+    if head is not None and head_limb is not None:
+        table.rows.append(("head", head_limb.joints, head_limb.reason))
+        fingers |= head[0] - {tree.m.joint(n).id for n in head_limb.joints}
+    mapped = arm_ids | ({tree.m.joint(n).id for n in head_limb.joints} if head_limb else set())
+    _hold_unmapped(tree, table, fingers - arm_ids, (trunk | hips) - mapped, mapped)
+    _hold_given(table, overrides, known, joints)
+    return Parts(out_arms, head_limb, table.held, forward, why, table.rows)
 
-    # legs: chains ending at the lowest points of the robot, below the body where they meet (the pelvis)
+
+#: A limb found in the tree: its hinge joint ids and the leaf bodies its chains end at.
+_Group = tuple[set[int], list[int]]
+
+
+@dataclass
+class _Table:
+    """The parts table :func:`find_parts` fills: rows (part, joints, why) and each held joint's part."""
+
+    rows: list[tuple[str, list[str], str]] = field(default_factory=list)
+    held: dict[str, str] = field(default_factory=dict)
+
+
+def _lower_body(
+    tree: _Tree, chains: dict[int, list[int]], table: _Table
+) -> tuple[list[int], list[int], set[int], set[int]]:
+    """The legs (held): chains ending at the lowest points of the robot, below the body where they meet (the
+    pelvis), else chains named as legs. Returns the feet, the leaves of the upper body, the leg joints and the
+    joints above the hips; when every chain reaches the floor there are no legs (nothing else to gesture with)."""
     floor = tree.lo[2] + 0.12 * tree.height
     feet = [leaf for leaf in chains if tree.low(leaf) < floor and len(chains) > 1]
     legs, hips = _legs(tree, feet, chains)
@@ -162,15 +211,21 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
         js = _ordered(tree, {j for f in leg_feet for j in chains[f]} & legs)
         if js:
             label = f"{side} leg" if side else "leg"
-            rows.append((label, [tree.name(j) for j in js], why_legs))
-            held.update(dict.fromkeys((tree.name(j) for j in js), "leg"))
-    rest_legs = legs - {tree.m.joint(n).id for n in held}
+            table.rows.append((label, [tree.name(j) for j in js], why_legs))
+            table.held.update(dict.fromkeys((tree.name(j) for j in js), "leg"))
+    rest_legs = legs - {tree.m.joint(n).id for n in table.held}
     if rest_legs:
-        rows.append(("leg", [tree.name(j) for j in _ordered(tree, rest_legs)], "held: below the hips"))
-        held.update(dict.fromkeys((tree.name(j) for j in rest_legs), "leg"))
+        table.rows.append(("leg", [tree.name(j) for j in _ordered(tree, rest_legs)], "held: below the hips"))
+        table.held.update(dict.fromkeys((tree.name(j) for j in rest_legs), "leg"))
+    return feet, upper, legs, hips
 
-    # the upper body: what every chain shares is the waist; the rest splits into limbs by shared joints
-    # a leaf whose joints all lie on another leaf's chain (a servo horn, a sensor) says nothing about the branches
+
+def _upper_limbs(
+    tree: _Tree, chains: dict[int, list[int]], upper: list[int], legs: set[int]
+) -> tuple[list[_Group], set[int]]:
+    """The upper body's limbs and its trunk: what every chain shares is the waist; the rest splits into limbs by
+    shared joints. A leaf whose joints all lie on another leaf's chain (a servo horn, a sensor) says nothing about
+    the branches."""
     tips = [u for i, u in enumerate(upper) if not any(set(chains[u]) < set(chains[v]) or
                                                        (set(chains[u]) == set(chains[v]) and k < i)
                                                        for k, v in enumerate(upper))]  # fmt: skip
@@ -179,14 +234,14 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
     if len(limbs) <= 1 and trunk:  # one chain (a desk arm): the shared joints are the arm's
         limbs = _limbs(tree, {u: [j for j in chains[u] if j not in legs] for u in upper})
         trunk = set()
-    arms, head = _pick(tree, limbs, overrides)
-    if overrides.get("head"):
-        head = (set(tree.m.joint(n).id for n in overrides["head"]), head[1] if head else [])
-    picked = set().union(*(a[0] for a in arms)) if arms else set()
-    if not arms:
-        raise InputError("found no chain of 2 or more joints spaced apart to map a human arm onto; "
-                         "name the arm joints with --arm left=J1,J2,... --arm right=...")  # fmt: skip
-    forward, why = _forward(tree, arms, feet, chains, legs, overrides.get("forward"))
+    return limbs, trunk
+
+
+def _arm_limbs(
+    tree: _Tree, arms: list[tuple[set[int], list[int], str]], forward: np.ndarray, overrides: dict
+) -> list[Limb]:
+    """The picked arms as limbs with their sites, left before right; two arms that their names do not tell apart
+    are told by where they sit (left of ``forward``)."""
     left_dir = np.cross([0.0, 0.0, 1.0], forward)
     given = {side: {tree.m.joint(n).id for n in names} for side, names in (overrides.get("arms") or {}).items()}
     out_arms = [
@@ -199,39 +254,36 @@ def find_parts(m, d, joints: list[str], overrides: dict) -> Parts:
         a.reason += "; side from where it sits"
         b.reason += "; side from where it sits"
     out_arms.sort(key=lambda a: a.part)
-    if len(out_arms) == 1 and not feet and head is None and not overrides.get("forward"):
-        forward, why = _reach_forward(tree, out_arms[0], forward, why)
-    for a in out_arms:
-        rows.append((a.part, a.joints, a.reason))
-    arm_ids = {tree.m.joint(n).id for a in out_arms for n in a.joints}
-    fingers = picked - arm_ids
-    head_limb = _head(tree, head, forward, arm_ids) if head else None
-    if head_limb is not None:
-        rows.append(("head", head_limb.joints, head_limb.reason))
-        fingers |= head[0] - {tree.m.joint(n).id for n in head_limb.joints}
-    fingers -= arm_ids
+    return out_arms
+
+
+def _hold_unmapped(tree: _Tree, table: _Table, fingers: set[int], waist_ids: set[int], mapped: set[int]) -> None:
+    """Hold what no arm or head moves: fingers, eyes and jaw; the waist (shared by every upper-body chain); and
+    every other joint."""
     if fingers:
-        rows.append(("fingers/eyes/jaw", [tree.name(j) for j in _ordered(tree, fingers)],
-                     "held: short chains after a wrist or on the head, or named so"))  # fmt: skip
-        held.update(dict.fromkeys((tree.name(j) for j in fingers), "finger"))
-    mapped = arm_ids | ({tree.m.joint(n).id for n in head_limb.joints} if head_limb else set())
-    waist = _ordered(tree, (trunk | hips) - mapped)
+        table.rows.append(("fingers/eyes/jaw", [tree.name(j) for j in _ordered(tree, fingers)],
+                           "held: short chains after a wrist or on the head, or named so"))  # fmt: skip
+        table.held.update(dict.fromkeys((tree.name(j) for j in fingers), "finger"))
+    waist = _ordered(tree, waist_ids)
     if waist:
-        rows.append(("waist", [tree.name(j) for j in waist], "held: shared by every upper-body chain (between "
-                     "pelvis and chest); map it with --arm/--head to move it"))  # fmt: skip
-        held.update(dict.fromkeys((tree.name(j) for j in waist), "waist"))
-    rest = [j for j in tree.jids if tree.name(j) not in held and j not in mapped]
+        table.rows.append(("waist", [tree.name(j) for j in waist], "held: shared by every upper-body chain "
+                           "(between pelvis and chest); map it with --arm/--head to move it"))  # fmt: skip
+        table.held.update(dict.fromkeys((tree.name(j) for j in waist), "waist"))
+    rest = [j for j in tree.jids if tree.name(j) not in table.held and j not in mapped]
     if rest:
-        rows.append(("other", [tree.name(j) for j in rest], "held: on no arm or head chain"))
-        held.update(dict.fromkeys((tree.name(j) for j in rest), "other"))
+        table.rows.append(("other", [tree.name(j) for j in rest], "held: on no arm or head chain"))
+        table.held.update(dict.fromkeys((tree.name(j) for j in rest), "other"))
+
+
+def _hold_given(table: _Table, overrides: dict, known: set[str], joints: list[str]) -> None:
+    """The joints given with ``--hold`` that are not held already; InputError for one the model lacks."""
     for name, q in (overrides.get("hold") or {}).items():
         if name not in known:
             raise InputError(f"--hold {name}={q}: {name!r} is not a hinge joint of the model; choose from {joints}")
-    given = [n for n in (overrides.get("hold") or {}) if held.get(n) is None]
+    given = [n for n in (overrides.get("hold") or {}) if table.held.get(n) is None]
     if given:
-        rows.append(("held (given)", given, "held at the angle given with --hold"))
-        held.update(dict.fromkeys(given, "given"))
-    return Parts(out_arms, head_limb, held, forward, why, rows)
+        table.rows.append(("held (given)", given, "held at the angle given with --hold"))
+        table.held.update(dict.fromkeys(given, "given"))
 
 
 def _legs(tree: _Tree, feet: list[int], chains: dict[int, list[int]]) -> tuple[set[int], set[int]]:
@@ -278,7 +330,9 @@ def _reach(tree: _Tree, joints: set[int], leaves: list[int]) -> tuple[np.ndarray
     return base, max(float(np.linalg.norm(tree.tip(lf, base) - base)) for lf in leaves)
 
 
-def _pick(tree: _Tree, limbs, overrides: dict):
+def _pick(
+    tree: _Tree, limbs: list[_Group], overrides: dict
+) -> tuple[list[tuple[set[int], list[int], str]], _Group | None]:
     """The arms (up to two: (joints, leaves, label)) and the head (joints, leaves) among the limbs."""
     m = tree.m
     given = overrides.get("arms") or {}
@@ -396,7 +450,7 @@ def _arm(tree: _Tree, joints: set[int], leaves: list[int], n_arms: int, label: s
     return limb
 
 
-def _head(tree: _Tree, head, forward: np.ndarray, arm_ids: set[int]) -> Limb | None:
+def _head(tree: _Tree, head: _Group, forward: np.ndarray, arm_ids: set[int]) -> Limb | None:
     """The head's main chain (what its leaves share; eyes and jaw branch off) and the neck/head/face sites."""
     js, leaves = head
     m = tree.m
@@ -418,7 +472,14 @@ def _head(tree: _Tree, head, forward: np.ndarray, arm_ids: set[int]) -> Limb | N
                 (" (named so)" if _WORDS["head"].search(_text(tree, chain)) else ""))  # fmt: skip
 
 
-def _forward(tree: _Tree, arms, feet, chains, legs, given: str | None) -> tuple[np.ndarray, str]:
+def _forward(
+    tree: _Tree,
+    arms: list[tuple[set[int], list[int], str]],
+    feet: list[int],
+    chains: dict[int, list[int]],
+    legs: set[int],
+    given: str | None,
+) -> tuple[np.ndarray, str]:
     """Where the robot faces in the description's frame: given; else from the arms' (or legs') left/right names;
     else from where the feet point; else +X."""
     axes = {"+x": (1, 0), "-x": (-1, 0), "+y": (0, 1), "-y": (0, -1)}
@@ -434,8 +495,8 @@ def _forward(tree: _Tree, arms, feet, chains, legs, given: str | None) -> tuple[
             lat = np.mean(sides["left"], axis=0) - np.mean(sides["right"], axis=0)
             lat[2] = 0
             if np.linalg.norm(lat) > 1e-3:
-                f = np.cross(lat / np.linalg.norm(lat), [0.0, 0.0, 1.0])
-                return _axis(f), f"{_label(_axis(f))}: the left {what} are on its left (from their names)"
+                front = np.cross(lat / np.linalg.norm(lat), [0.0, 0.0, 1.0])
+                return _axis(front), f"{_label(_axis(front))}: the left {what} are on its left (from their names)"
     toes = []
     for f in feet:
         js = _ordered(tree, set(chains[f]) & legs)
@@ -461,7 +522,8 @@ def _reach_forward(tree: _Tree, arm: Limb, forward: np.ndarray, why: str) -> tup
     def world(role: str) -> np.ndarray:
         body, pos = arm.points[role]
         b = m.body(body).id
-        return d.xpos[b] + d.xmat[b].reshape(3, 3) @ pos
+        point: np.ndarray = d.xpos[b] + d.xmat[b].reshape(3, 3) @ pos
+        return point
 
     v = world("hand") - world("shoulder")
     if np.linalg.norm(v[:2]) < 0.5 * np.linalg.norm(v):
