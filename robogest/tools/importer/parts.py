@@ -15,22 +15,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from robogest.errors import InputError
-from robogest.tools.importer.model import geom_boxes
+from robogest.tools.importer.tree import SIDES, WORDS, Tree, ordered, side_of, text_of
 
 if TYPE_CHECKING:
     import mujoco
 
-#: Words in joint or link names that say what a chain is (used after the tree, to break ties and name sides).
-_WORDS = {
-    "head": re.compile(r"head|neck|eye|jaw|mouth|brow|lid|face|cam", re.I),
-    "leg": re.compile(r"hip|knee|ank|foot|feet|leg|thigh|shin|toe|calf", re.I),
-    "arm": re.compile(r"arm|sho|elb|wrist|hand|bicep|omoplate|clav", re.I),
-    "finger": re.compile(r"finger|thumb|index|middle|ring|pinky|grip|claw|jaw|eye|mouth|lid|brow", re.I),
-}
-SIDES = {
-    "left": re.compile(r"(^|[_\W\d])(l|left)([_\W\d]|$)|^left|left$|^l[A-Z]", re.I),
-    "right": re.compile(r"(^|[_\W\d])(r|right)([_\W\d]|$)|^right|right$|^r[A-Z]", re.I),
-}
 _ROLE_WORDS = {
     "shoulder": re.compile(r"shoulder|sho(_|\b)|upper_?arm|omoplate", re.I),
     "elbow": re.compile(r"elbow|elb(_|\b)|forearm|lower_?arm|bicep", re.I),
@@ -61,82 +50,11 @@ class Parts:
     rows: list[tuple[str, list[str], str]] = field(default_factory=list)  # part, joints, reason (the table)
 
 
-class _Tree:
-    """The compiled model's bodies, hinge joints and the points they sit at, at the pose in ``d``."""
-
-    def __init__(self, m: mujoco.MjModel, d: mujoco.MjData, joints: list[str]) -> None:
-        self.m, self.d = m, d
-        self.jids = [m.joint(j).id for j in joints]
-        self.jset = set(self.jids)
-        kids: dict[int, list[int]] = {}
-        for b in range(1, m.nbody):
-            kids.setdefault(int(m.body_parentid[b]), []).append(b)
-        self.kids = kids
-        self.leaves = [b for b in range(1, m.nbody) if b not in kids]
-        robot = m.body_rootid[m.geom_bodyid] != 0 if m.ngeom else np.zeros(0, bool)
-        self.glo, self.ghi = geom_boxes(m, d)
-        self.robot_geoms = np.flatnonzero(robot)
-        pts = np.vstack([self.glo[robot], self.ghi[robot], d.xpos[1:]]) if m.nbody > 1 else np.zeros((1, 3))
-        self.lo, self.hi = pts.min(axis=0), pts.max(axis=0)
-        self.height = max(float(self.hi[2] - self.lo[2]), 1e-3)
-
-    def name(self, j: int) -> str:
-        return str(self.m.joint(j).name)
-
-    def chain(self, body: int) -> list[int]:
-        """Hinge joints from the root down to ``body``, root first."""
-        m, out = self.m, []
-        while body > 0:
-            adr = m.body_jntadr[body]
-            out += [j for j in range(adr, adr + m.body_jntnum[body]) if j in self.jset][::-1]
-            body = int(m.body_parentid[body])
-        return out[::-1]
-
-    def low(self, body: int) -> float:
-        g = [i for i in self.robot_geoms if self.m.geom_bodyid[i] == body]
-        return float(self.glo[g, 2].min()) if g else float(self.d.xpos[body][2])
-
-    def tip(self, leaf: int, last: np.ndarray) -> np.ndarray:
-        """The end of a leaf link: its geoms' point farthest from ``last`` (the link's origin if it has none)."""
-        m, d = self.m, self.d
-        best: np.ndarray = d.xpos[leaf].copy()
-        far = float(np.linalg.norm(d.xpos[leaf] - last))
-        for g in range(m.ngeom):
-            if m.geom_bodyid[g] != leaf:
-                continue
-            v = d.geom_xpos[g] - last
-            n = float(np.linalg.norm(v))
-            p = d.geom_xpos[g] + v / n * float(np.max(m.geom_size[g])) if n > 1e-9 else d.geom_xpos[g]
-            if np.linalg.norm(p - last) > far:
-                best, far = p, float(np.linalg.norm(p - last))
-        return best
-
-    def local(self, body: int, world: np.ndarray) -> tuple[str, np.ndarray]:
-        """Body ``body``'s name and the point ``world`` in its frame."""
-        xmat = self.d.xmat[body].reshape(3, 3)
-        local: np.ndarray = xmat.T @ (world - self.d.xpos[body])
-        return str(self.m.body(body).name), local
-
-
-def _ordered(tree: _Tree, joints: set[int]) -> list[int]:
-    return [j for j in tree.jids if j in joints]
-
-
-def _text(tree: _Tree, joints: list[int]) -> str:
-    m = tree.m
-    return " ".join(f"{m.joint(j).name} {m.body(m.jnt_bodyid[j]).name}" for j in joints)
-
-
-def _side(text: str) -> str | None:
-    hits = [s for s, pat in SIDES.items() if any(pat.search(w) for w in text.split())]
-    return hits[0] if len(hits) == 1 else None
-
-
 def find_parts(m: mujoco.MjModel, d: mujoco.MjData, joints: list[str], overrides: dict) -> Parts:
     """Legs, waist, arms, head, fingers of the model at the pose in ``d``; ``overrides`` (``arms: {left: [..],
     right: [..]}``, ``head: [..]``, ``forward: "+y"``) replace a guess. Raises InputError for an override naming a
     joint the model lacks, or when no arm is found."""
-    tree = _Tree(m, d, joints)
+    tree = Tree(m, d, joints)
     known = set(joints)
     for part, names in [*((f"--arm {s}", v) for s, v in (overrides.get("arms") or {}).items()),
                         ("--head", overrides.get("head") or [])]:  # fmt: skip
@@ -188,7 +106,7 @@ class _Table:
 
 
 def _lower_body(
-    tree: _Tree, chains: dict[int, list[int]], table: _Table
+    tree: Tree, chains: dict[int, list[int]], table: _Table
 ) -> tuple[list[int], list[int], set[int], set[int]]:
     """The legs (held): chains ending at the lowest points of the robot, below the body where they meet (the
     pelvis), else chains named as legs. Returns the feet, the leaves of the upper body, the leg joints and the
@@ -199,7 +117,7 @@ def _lower_body(
     why_legs = "held: the chain ends at the robot's lowest point (a foot)"
     if not legs:  # feet off the floor (a humanoid on a pedestal): legs by their names
         named = [lf for lf, c in chains.items()
-                 if _WORDS["leg"].search(_text(tree, c)) and not _WORDS["arm"].search(_text(tree, c))]  # fmt: skip
+                 if WORDS["leg"].search(text_of(tree, c)) and not WORDS["arm"].search(text_of(tree, c))]  # fmt: skip
         legs, hips = _legs(tree, named, chains)
         feet = named if legs else feet
         why_legs = "held: named as a leg (its foot does not reach the floor)"
@@ -207,21 +125,21 @@ def _lower_body(
     if not upper:  # everything reaches the floor: nothing to gesture with
         feet, upper, legs, hips = [], list(chains), set(), set()
     for side in ("left", "right", None):
-        leg_feet = [f for f in feet if _side(_text(tree, [j for j in chains[f] if j in legs])) == side]
-        js = _ordered(tree, {j for f in leg_feet for j in chains[f]} & legs)
+        leg_feet = [f for f in feet if side_of(text_of(tree, [j for j in chains[f] if j in legs])) == side]
+        js = ordered(tree, {j for f in leg_feet for j in chains[f]} & legs)
         if js:
             label = f"{side} leg" if side else "leg"
             table.rows.append((label, [tree.name(j) for j in js], why_legs))
             table.held.update(dict.fromkeys((tree.name(j) for j in js), "leg"))
     rest_legs = legs - {tree.m.joint(n).id for n in table.held}
     if rest_legs:
-        table.rows.append(("leg", [tree.name(j) for j in _ordered(tree, rest_legs)], "held: below the hips"))
+        table.rows.append(("leg", [tree.name(j) for j in ordered(tree, rest_legs)], "held: below the hips"))
         table.held.update(dict.fromkeys((tree.name(j) for j in rest_legs), "leg"))
     return feet, upper, legs, hips
 
 
 def _upper_limbs(
-    tree: _Tree, chains: dict[int, list[int]], upper: list[int], legs: set[int]
+    tree: Tree, chains: dict[int, list[int]], upper: list[int], legs: set[int]
 ) -> tuple[list[_Group], set[int]]:
     """The upper body's limbs and its trunk: what every chain shares is the waist; the rest splits into limbs by
     shared joints. A leaf whose joints all lie on another leaf's chain (a servo horn, a sensor) says nothing about
@@ -238,7 +156,7 @@ def _upper_limbs(
 
 
 def _arm_limbs(
-    tree: _Tree, arms: list[tuple[set[int], list[int], str]], forward: np.ndarray, overrides: dict
+    tree: Tree, arms: list[tuple[set[int], list[int], str]], forward: np.ndarray, overrides: dict
 ) -> list[Limb]:
     """The picked arms as limbs with their sites, left before right; two arms that their names do not tell apart
     are told by where they sit (left of ``forward``)."""
@@ -257,14 +175,14 @@ def _arm_limbs(
     return out_arms
 
 
-def _hold_unmapped(tree: _Tree, table: _Table, fingers: set[int], waist_ids: set[int], mapped: set[int]) -> None:
+def _hold_unmapped(tree: Tree, table: _Table, fingers: set[int], waist_ids: set[int], mapped: set[int]) -> None:
     """Hold what no arm or head moves: fingers, eyes and jaw; the waist (shared by every upper-body chain); and
     every other joint."""
     if fingers:
-        table.rows.append(("fingers/eyes/jaw", [tree.name(j) for j in _ordered(tree, fingers)],
+        table.rows.append(("fingers/eyes/jaw", [tree.name(j) for j in ordered(tree, fingers)],
                            "held: short chains after a wrist or on the head, or named so"))  # fmt: skip
         table.held.update(dict.fromkeys((tree.name(j) for j in fingers), "finger"))
-    waist = _ordered(tree, waist_ids)
+    waist = ordered(tree, waist_ids)
     if waist:
         table.rows.append(("waist", [tree.name(j) for j in waist], "held: shared by every upper-body chain "
                            "(between pelvis and chest); map it with --arm/--head to move it"))  # fmt: skip
@@ -286,7 +204,7 @@ def _hold_given(table: _Table, overrides: dict, known: set[str], joints: list[st
         table.held.update(dict.fromkeys(given, "given"))
 
 
-def _legs(tree: _Tree, feet: list[int], chains: dict[int, list[int]]) -> tuple[set[int], set[int]]:
+def _legs(tree: Tree, feet: list[int], chains: dict[int, list[int]]) -> tuple[set[int], set[int]]:
     """The leg joints (every hinge in the subtrees below the body where the feet's chains meet) and the joints
     from the root down to that body (a waist above the hips when the root is the chest)."""
     if len(feet) < 2:
@@ -312,7 +230,7 @@ def _legs(tree: _Tree, feet: list[int], chains: dict[int, list[int]]) -> tuple[s
     return legs, (set(tree.chain(meet)) if meet > 0 else set())
 
 
-def _limbs(tree: _Tree, exclusive: dict[int, list[int]]) -> list[tuple[set[int], list[int]]]:
+def _limbs(tree: Tree, exclusive: dict[int, list[int]]) -> list[tuple[set[int], list[int]]]:
     """Leaves whose chains share a joint are one limb: (joint ids, leaves)."""
     limbs: list[tuple[set[int], list[int]]] = []
     for leaf, js in exclusive.items():
@@ -324,14 +242,14 @@ def _limbs(tree: _Tree, exclusive: dict[int, list[int]]) -> list[tuple[set[int],
     return limbs
 
 
-def _reach(tree: _Tree, joints: set[int], leaves: list[int]) -> tuple[np.ndarray, float]:
-    first = _ordered(tree, joints)[0]
+def _reach(tree: Tree, joints: set[int], leaves: list[int]) -> tuple[np.ndarray, float]:
+    first = ordered(tree, joints)[0]
     base = tree.d.xanchor[first]
     return base, max(float(np.linalg.norm(tree.tip(lf, base) - base)) for lf in leaves)
 
 
 def _pick(
-    tree: _Tree, limbs: list[_Group], overrides: dict
+    tree: Tree, limbs: list[_Group], overrides: dict
 ) -> tuple[list[tuple[set[int], list[int], str]], _Group | None]:
     """The arms (up to two: (joints, leaves, label)) and the head (joints, leaves) among the limbs."""
     m = tree.m
@@ -346,10 +264,10 @@ def _pick(
     else:
         scored = []
         for js, leaves in limbs:
-            text = _text(tree, _ordered(tree, js))
+            text = text_of(tree, ordered(tree, js))
             base, reach = _reach(tree, js, leaves)
             points = len({tuple(np.round(tree.d.xanchor[j], 2)) for j in js})
-            named_other = (_WORDS["head"].search(text) or _WORDS["leg"].search(text)) and not _WORDS["arm"].search(text)
+            named_other = (WORDS["head"].search(text) or WORDS["leg"].search(text)) and not WORDS["arm"].search(text)
             if points >= 2 and not named_other:
                 scored.append((reach, base, js, leaves, text))
         scored.sort(key=lambda s: -s[0])
@@ -360,46 +278,44 @@ def _pick(
             mate = next((s for s in scored[1:] if abs(s[1][2] - a[1][2]) < 0.15 * tree.height
                          and s[0] > 0.5 * a[0]), None)  # fmt: skip
             for s in [a] + ([mate] if mate else []):
-                side = _side(s[4])
+                side = side_of(s[4])
                 label = f"{side} arm" if mate and side else "arm"
                 arms.append((s[2], s[3], label))
             if len(arms) == 2 and arms[0][2] == arms[1][2] != "arm":
                 arms = [(js, lv, "arm") for js, lv, _ in arms]
         rest = [lb for lb in limbs if not any(lb[0] is a[0] for a in arms)]
     # the head: the limb that rises highest above the arms' bases, or one named so
-    top = max((tree.d.xanchor[_ordered(tree, a[0])[0]][2] for a in arms), default=tree.lo[2])
+    top = max((tree.d.xanchor[ordered(tree, a[0])[0]][2] for a in arms), default=tree.lo[2])
     heads = []
     for js, leaves in rest:
-        base = tree.d.xanchor[_ordered(tree, js)[0]]
+        base = tree.d.xanchor[ordered(tree, js)[0]]
         high = max(tree.d.xpos[lf][2] for lf in leaves)
-        named = bool(_WORDS["head"].search(_text(tree, _ordered(tree, js))))
+        named = bool(WORDS["head"].search(text_of(tree, ordered(tree, js))))
         if named or (base[2] > top - 0.1 * tree.height and high > top):
             heads.append((named, high, js, leaves))
     heads.sort(key=lambda h: (h[0], h[1]), reverse=True)
     return arms, ((heads[0][2], heads[0][3]) if heads else None)
 
 
-def _twist(tree: _Tree, j: int, tip: np.ndarray) -> bool:
+def _twist(tree: Tree, j: int, tip: np.ndarray) -> bool:
     """A joint turning about its own bone (axis along the way to the tip) bends nothing: not a site."""
     v = tip - tree.d.xanchor[j]
     n = np.linalg.norm(v)
     return bool(n > 1e-6 and abs(tree.d.xaxis[j] @ v / n) > 0.9)
 
 
-def _arm(tree: _Tree, joints: set[int], leaves: list[int], n_arms: int, label: str, given: set[int] | None) -> Limb:
+def _arm(tree: Tree, joints: set[int], leaves: list[int], n_arms: int, label: str, given: set[int] | None) -> Limb:
     """The arm's main chain (to the leaf that reaches farthest: the hand), its shoulder/elbow/wrist/hand sites (a
     joint turning about its own bone is no site), and why. Joints past the wrist, or named as fingers, are not."""
     m = tree.m
-    base = tree.d.xanchor[_ordered(tree, joints)[0]]
+    base = tree.d.xanchor[ordered(tree, joints)[0]]
     leaf = max(leaves, key=lambda lf: float(np.linalg.norm(tree.tip(lf, base) - base)))  # the hand
-    chain = _ordered(tree, set(tree.chain(leaf)) & joints)
+    chain = ordered(tree, set(tree.chain(leaf)) & joints)
     if given:  # the arm named on the command line: those joints and no others gesture
         chain = [j for j in chain if j in given]
     tip = tree.tip(leaf, tree.d.xanchor[chain[-1]])
     reach = float(np.linalg.norm(tip - base))
-    named_fingers = [
-        j for j in chain if _WORDS["finger"].search(tree.name(j)) and not _WORDS["arm"].search(tree.name(j))
-    ]
+    named_fingers = [j for j in chain if WORDS["finger"].search(tree.name(j)) and not WORDS["arm"].search(tree.name(j))]
     chain = [j for j in chain if j not in named_fingers]
     tol = max(0.01, 0.08 * reach)
     groups: list[list[int]] = []
@@ -450,12 +366,12 @@ def _arm(tree: _Tree, joints: set[int], leaves: list[int], n_arms: int, label: s
     return limb
 
 
-def _head(tree: _Tree, head: _Group, forward: np.ndarray, arm_ids: set[int]) -> Limb | None:
+def _head(tree: Tree, head: _Group, forward: np.ndarray, arm_ids: set[int]) -> Limb | None:
     """The head's main chain (what its leaves share; eyes and jaw branch off) and the neck/head/face sites."""
     js, leaves = head
     m = tree.m
     main = set.intersection(*(set(tree.chain(lf)) for lf in leaves)) & js if leaves else set(js)
-    chain = [j for j in _ordered(tree, main or js) if j not in arm_ids]
+    chain = [j for j in ordered(tree, main or js) if j not in arm_ids]
     chain = [j for j in chain if not re.search(r"eye|jaw|mouth|lid|brow", tree.name(j), re.I)] or chain
     if not chain:
         return None
@@ -469,11 +385,11 @@ def _head(tree: _Tree, head: _Group, forward: np.ndarray, arm_ids: set[int]) -> 
         "face": tree.local(body, top + size * (0.78 * forward + np.array([0.0, 0.0, 0.62]))),  # as a person's nose
     }
     return Limb("head", [tree.name(j) for j in chain], points, "the chain above the shoulders" +
-                (" (named so)" if _WORDS["head"].search(_text(tree, chain)) else ""))  # fmt: skip
+                (" (named so)" if WORDS["head"].search(text_of(tree, chain)) else ""))  # fmt: skip
 
 
 def _forward(
-    tree: _Tree,
+    tree: Tree,
     arms: list[tuple[set[int], list[int], str]],
     feet: list[int],
     chains: dict[int, list[int]],
@@ -487,10 +403,10 @@ def _forward(
         x, y = axes[given]
         return np.array([x, y, 0.0]), f"{given} (given with --forward)"
     d = tree.d
-    for what, groups in (("arms", [(a[0], _side(_text(tree, _ordered(tree, a[0])))) for a in arms]),
-                         ("legs", [(set(chains[f]) & legs, _side(_text(tree, _ordered(tree, set(chains[f]) & legs))))
+    for what, groups in (("arms", [(a[0], side_of(text_of(tree, ordered(tree, a[0])))) for a in arms]),
+                         ("legs", [(set(chains[f]) & legs, side_of(text_of(tree, ordered(tree, set(chains[f]) & legs))))
                                    for f in feet])):  # fmt: skip
-        sides = {s: [d.xanchor[_ordered(tree, js)[0]] for js, s2 in groups if s2 == s and js] for s in SIDES}
+        sides = {s: [d.xanchor[ordered(tree, js)[0]] for js, s2 in groups if s2 == s and js] for s in SIDES}
         if sides["left"] and sides["right"]:
             lat = np.mean(sides["left"], axis=0) - np.mean(sides["right"], axis=0)
             lat[2] = 0
@@ -499,7 +415,7 @@ def _forward(
                 return _axis(front), f"{_label(_axis(front))}: the left {what} are on its left (from their names)"
     toes = []
     for f in feet:
-        js = _ordered(tree, set(chains[f]) & legs)
+        js = ordered(tree, set(chains[f]) & legs)
         if js:
             v = d.xpos[f] - d.xanchor[js[-1]]
             g = [i for i in tree.robot_geoms if tree.m.geom_bodyid[i] == f]
@@ -514,7 +430,7 @@ def _forward(
     return np.array([1.0, 0.0, 0.0]), "+x: the convention (nothing in the description says otherwise)"
 
 
-def _reach_forward(tree: _Tree, arm: Limb, forward: np.ndarray, why: str) -> tuple[np.ndarray, str]:
+def _reach_forward(tree: Tree, arm: Limb, forward: np.ndarray, why: str) -> tuple[np.ndarray, str]:
     """A single arm that reaches sideways at joint zero faces where it reaches (nothing else says where its front
     is); one that stands up keeps ``forward``."""
     m, d = tree.m, tree.d
