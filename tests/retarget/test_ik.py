@@ -113,6 +113,20 @@ def test_unknown_site_is_a_config_error(make_robot, tmp_path, bad):
         DirectionIK(load_robot_config(p))
 
 
+def test_a_robot_without_a_file_is_named_in_a_missing_joint_error(make_robot):
+    """A robot built in memory (no YAML file) is named by its name, not "None", when its joint is not in the MJCF."""
+    import re
+
+    from robogest.errors import ConfigError
+
+    robot = make_robot()
+    joints = [robot.joints[0].model_copy(update={"name": "nope_joint"}), *robot.joints[1:]]
+    robot = robot.model_copy(update={"path": None, "model": str(robot.model_path), "joints": joints})
+    expected = rf"^{re.escape(robot.name)}: key joints\[0\]\.name: 'nope_joint' is not a joint"
+    with pytest.raises(ConfigError, match=expected):
+        DirectionIK(robot)
+
+
 def test_no_commanded_pose_penetrates_the_desk(rng):
     """The desk arm must never be told to push its hand into the desk, whatever the human does."""
     from robogest.robot import find_robot
