@@ -136,9 +136,9 @@ def test_each_plan_generates_over_a_bounded_stretch(cfg):
     gen = make_generator("rhythm")
     generate = gen.generate
 
-    def spy(sp, seed=0):
+    def spy(sp, seed=0, **live):
         seen.append(sp.duration_s)
-        return generate(sp, seed=seed)
+        return generate(sp, seed=seed, **live)
 
     gen.generate = spy  # type: ignore[method-assign]
     st = SpeechStream(sr)
@@ -245,18 +245,18 @@ def test_blas_thread_limit_is_the_sessions_own_and_restored_on_close():
 def test_a_plan_the_tracker_refuses_stops_the_utterance_instead_of_playing_unchecked_frames(cfg, tts, monkeypatch):
     """Where the tracker cannot continue the motion within the limits, the stream must not fall back to the raw IK
     frames: the refusal is raised (the session then stops the utterance and glides to rest)."""
-    import robogest.safety.stages as stages
     from robogest.errors import SafetyError
+    from robogest.safety.stage import SafetyStage
 
-    real_track, calls = stages.track, []
+    real_track, calls = SafetyStage._track, []
 
-    def refusing_track(*args, **kwargs):
+    def refusing_track(self, *args, **kwargs):
         calls.append(1)
-        if len(calls) > 1:  # the first continuation is tracked; the next is refused
+        if len(calls) > 1:  # the first plan is tracked; the next is refused
             raise SafetyError("safety: simulated refusal")
-        return real_track(*args, **kwargs)
+        return real_track(self, *args, **kwargs)
 
-    monkeypatch.setattr(stages, "track", refusing_track)
+    monkeypatch.setattr(SafetyStage, "_track", refusing_track)
     with pytest.raises(SafetyError, match=r"streamed plan \d+ .* glides to rest: safety: simulated refusal"):
         _stream_with_player(cfg, tts)
     assert len(calls) == 2
