@@ -109,13 +109,21 @@ class TrajectoryFeed:
         with self._lock:
             self._q = np.concatenate([self._q, q_rad])
 
-    def splice(self, start: int, q_rad: np.ndarray, blend_s: float = 0.25, pinned: np.ndarray | None = None) -> int:
+    def splice(
+        self,
+        start: int,
+        q_rad: np.ndarray,
+        blend_s: float = 0.25,
+        pinned: np.ndarray | None = None,
+        continuous: bool = False,
+    ) -> int:
         """Frames ``q_rad (K, J)`` radians for indices ``start..start+K-1``, replacing what is there.
 
         Frames the player has sampled are kept; the new ones take over from the first open frame (or the end of
         the feed, if it is shorter), offset to continue from the frame before it, the offset decaying over
         ``blend_s`` (memoryless: a minimum of motion added); ``pinned (K,)`` frames (rest) are taken as they are.
-        Returns how many frames of ``q_rad`` went in.
+        ``continuous``: ``q_rad[0]`` already continues frame ``start - 1`` (the safety stage resumed from it), so
+        no offset is added when the new frames go in at ``start``. Returns how many frames of ``q_rad`` went in.
         """
         q_rad = np.asarray(q_rad, float).reshape(-1, len(self.joint_names))
         with self._lock:
@@ -127,7 +135,7 @@ class TrajectoryFeed:
             if ks - start >= q_rad.shape[0]:
                 return 0
             new = q_rad[ks - start :].copy()
-            if ks > 0:  # continue from the last frame kept: the new plan's offset from it decays
+            if ks > 0 and not (continuous and ks == start):  # continue from the last frame kept: the offset decays
                 ref = q_rad[ks - start - 1] if ks > start else new[0]
                 k = np.arange(1, new.shape[0] + 1)[:, None]
                 blend = (old[ks - 1] - ref) * np.exp(-k / max(1e-9, blend_s / 3 * self.fps))
@@ -304,35 +312,39 @@ class StreamingPlanner:
             pinned = np.zeros(len(q), bool)
             for a, b in rests:  # exactly at rest where the generator rests (the silent-period hint)
                 pinned |= (t >= a) & (t <= b)
-            q = self._safe(q, first, pinned)
-            n = feed.splice(first, q, self.blend_s, pinned=pinned)
+            kept = max(first, feed.first_open)  # frames before it are played (or the reference before the change)
+            if kept - first < len(q):
+                q_safe = self._safe(q[kept - first :], kept, pinned[kept - first :])
+                n = feed.splice(kept, q_safe, self.blend_s, pinned=pinned[kept - first :], continuous=True)
             self._remember(motion.rotations, off, first, n_end)
             self.n_plans += 1
         if final:
             self._finish(n_end)
         return n
 
-    def _safe(self, q: np.ndarray, first: int, pinned: np.ndarray) -> np.ndarray:
-        """``q (K, J)`` IK frames for feed frames ``first..`` made safe by the stage, continuing the frame before them
-        (its position and step) as the batch path's tracker continues within one utterance. Without it the control
-        loop's limiter saturates on raw IK frames (measured on a 16 s paragraph: goals up to 62° from the plan,
-        wrist-speed correlation 0.51; with it 23° and 0.90, like the batch path's 5° and 0.99).
+    def _safe(self, q: np.ndarray, kept: int, pinned: np.ndarray) -> np.ndarray:
+        """The IK frames ``q (K, J)`` for feed frames ``kept..`` (the first the player has not used) made safe by the
+        stage, continuing the last frame
+        the player keeps (its position and step) as the batch path's tracker continues within one utterance.
+        Without it the control loop's limiter saturates on raw IK frames (measured on a 16 s paragraph: goals up to
+        62° from the plan, wrist-speed correlation 0.51; with it 23° and 0.90, like the batch path's 5° and 0.99).
 
-        A plan the stage refuses is never replaced by the unchecked frames: the :class:`SafetyError` stops the
-        utterance and the robot glides to rest, as any planner failure does."""
+        The result continues frame ``kept - 1`` (``splice(..., continuous=True)`` adds no offset to it). A plan the
+        stage
+        refuses is never replaced by the unchecked frames: the :class:`SafetyError` stops the utterance and the
+        robot glides to rest, as any planner failure does."""
         feed, stage = self.feed, self.safety
-        if first == 0 or feed.n_frames == 0:  # the utterance's start: still at its first frame
+        if kept == 0 or feed.n_frames == 0:  # the utterance's start: still at its first frame
             self.safety = stage = SafetyStage(self.limits, feed.fps, self.safety_config)
-        elif feed.n_frames < first:  # the player ran past the last plan: the frames up to first hold its last pose
-            stage.resume(feed.q_rad[-1], np.zeros(self.rest.shape), first - 1)
         else:
-            prev = feed.q_rad[first - 1]
-            stage.resume(prev, prev - feed.q_rad[first - 2] if first >= 2 else np.zeros_like(prev), first - 1)
+            ref = feed.q_rad[min(kept, feed.n_frames) - 1]  # past the end, the splice holds the last frame
+            step = ref - feed.q_rad[kept - 2] if 2 <= kept <= feed.n_frames else np.zeros_like(ref)
+            stage.resume(ref, step, kept - 1)
         try:
             return stage.extend(q, pinned=pinned)
         except SafetyError as e:
             raise SafetyError(
-                f"safety: streamed plan {self.n_plans + 1} (frames from {first / feed.fps:.2f} s) cannot continue "
+                f"safety: streamed plan {self.n_plans + 1} (frames from {kept / feed.fps:.2f} s) cannot continue "
                 f"the motion within the robot's limits, so the utterance stops and the robot glides to rest: {e}"
             ) from e
 
