@@ -45,6 +45,7 @@ import numpy as np
 from robogest.errors import InputError, SafetyError
 from robogest.generators.base import Generator, LivePlanState
 from robogest.motion.human_motion import HumanMotion
+from robogest.retarget.base import Retargeter
 from robogest.robot.config import RobotConfig
 from robogest.safety.limits import JointLimits, SafetyConfig
 from robogest.safety.stage import SafetyStage
@@ -168,16 +169,16 @@ class TrajectoryFeed:
         if i >= q.shape[0] - 1:
             if not self.closed and t_s > self.known_s + 0.5 / self.fps:
                 self.underruns += 1
-            return q[-1].copy()
+            return np.array(q[-1], dtype=float)
         f = x - i
-        return (1 - f) * q[i] + f * q[i + 1]
+        return np.asarray((1 - f) * q[i] + f * q[i + 1], dtype=float)
 
     def sample_velocity(self, t_s: float) -> np.ndarray:
         """Slope ``(J,)`` rad/s of :meth:`sample` at ``t_s`` (0 outside the frames)."""
         q, _, i = self._index(t_s)
         if t_s < 0 or i >= q.shape[0] - 1:
             return np.zeros(q.shape[1])
-        return (q[i + 1] - q[i]) * self.fps
+        return np.asarray((q[i + 1] - q[i]) * self.fps, dtype=float)
 
     def to_trajectory(self) -> Trajectory:
         """The frames so far as a :class:`Trajectory` (for checks and saving)."""
@@ -227,7 +228,7 @@ class StreamingPlanner:
         self,
         robot: RobotConfig,
         generator: Generator,
-        retargeter,
+        retargeter: Retargeter,
         stream: SpeechStream,
         fps: float = 50.0,
         seed: int = 0,
@@ -386,4 +387,4 @@ class StreamingPlanner:
 def _min_jerk(x: np.ndarray) -> np.ndarray:
     """Minimum-jerk profile ``(N,)`` from 0 to 1 over ``x`` in [0, 1]."""
     x = np.clip(x, 0.0, 1.0)
-    return x**3 * (10 - 15 * x + 6 * x * x)
+    return np.asarray(x**3 * (10 - 15 * x + 6 * x * x), dtype=float)

@@ -78,7 +78,7 @@ def fit_within_limits(
     g = sparse.vstack([d1, d2], format="csc")
     p = sparse.diags(w, format="csc")
     for j in range(n_j):
-        if limits.held_mask[j]:  # band = its rest angle: track pins it, nothing to fit
+        if limits.held_mask is not None and limits.held_mask[j]:  # band = its rest angle: track pins it, nothing to fit
             continue
         y = _fit_joint(p, g, -w * x[1:, j], q0[j], s0[j], vstep[j], astep[j], lo[j], hi[j])
         if y is not None:

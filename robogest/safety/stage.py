@@ -115,14 +115,15 @@ class SafetyStage:
     ) -> None:
         if isinstance(fps, bool) or not (isinstance(fps, numbers.Real) and np.isfinite(fps) and fps > 0):
             raise InputError(f"safety: fps must be a finite number > 0, got {fps!r}")
-        self.limits, self.fps = limits, float(fps)
-        self.config = SafetyConfig() if config is None else config
+        self.limits: JointLimits = limits
+        self.fps: float = float(fps)
+        self.config: SafetyConfig = SafetyConfig() if config is None else config
         self.dt_s = 1.0 / self.fps
         self._kernel = gaussian_kernel(self.config.smooth_kernel, self.config.smooth_sigma)  # (k,) weights
         self._q0 = None if q0 is None else checked_q0(q0, limits)
         n_j = limits.n_joints
         empty = np.empty((0, n_j))
-        self._pending = _Pending(empty, empty, np.empty(0, bool), np.empty(0, bool))
+        self._pending: _Pending = _Pending(empty, empty, np.empty(0, bool), np.empty(0, bool))
         self._history: np.ndarray | None = None  # (r, J) clamped frames before the pending ones
         self._rate_in: np.ndarray | None = None  # (J,) last smoothed frame into the rate limiter
         self._rate_out: np.ndarray | None = None  # (J,) its output there
@@ -131,11 +132,11 @@ class SafetyStage:
         self._last: np.ndarray | None = None  # (≤2, J) the last frames committed
         self._step = np.zeros(n_j)  # the tracker's last step, radians per frame
         self._bounds = continuation_bounds(limits, self.dt_s, limits.rest_q_rad, self.config.margin_rad)
-        self.n_frames = 0  #: frames committed so far (input frames; the start of the next chunk)
-        self.n_input = 0  #: frames received so far
-        self.counts = StageCounts()
-        self.rest_target = np.empty(0, bool)  #: ``(T',)`` the last chunk's frames whose target was rest
-        self._ended = False
+        self.n_frames: int = 0  #: frames committed so far (input frames; the start of the next chunk)
+        self.n_input: int = 0  #: frames received so far
+        self.counts: StageCounts = StageCounts()
+        self.rest_target: np.ndarray = np.empty(0, bool)  #: ``(T',)`` the last chunk's frames whose target was rest
+        self._ended: bool = False
 
     # --- the two calls -----------------------------------------------------------------------------------------
     def extend(
@@ -219,7 +220,7 @@ class SafetyStage:
         step = np.asarray(step_rad, dtype=float)
         check_finite(np.vstack([q, step]), self.limits, self.fps, frame)
         empty = np.empty((0, self.limits.n_joints))
-        self._pending = _Pending(empty, empty, np.empty(0, bool), np.empty(0, bool))
+        self._pending: _Pending = _Pending(empty, empty, np.empty(0, bool), np.empty(0, bool))
         self._history, self._run_start, self._ended = None, None, False
         self._rate_in, self._rate_out, self._rate_exact = q.copy(), q.copy(), False
         self._last, self._step = np.vstack([q - step, q]), step.copy()
@@ -286,7 +287,7 @@ class SafetyStage:
         c = self._pending.clamped
         r = self.config.smooth_kernel // 2
         if r == 0:
-            return c[:n].copy()
+            return np.array(c[:n], dtype=float)
         ahead = c[n : n + r]
         if ahead.shape[0] < r:  # the end of the motion: pad with its last frame
             ahead = np.vstack([ahead, np.repeat(c[-1:], r - ahead.shape[0], axis=0)])
@@ -313,10 +314,10 @@ class SafetyStage:
 
     def _start_pose(self, rated: np.ndarray | None) -> np.ndarray:
         if self._q0 is not None:
-            return self._q0
+            return np.array(self._q0, dtype=float)
         if self.config.start_from_rest or rated is None:
-            return self.limits.rest_q_rad.copy()
-        return rated[0].copy()
+            return np.array(self.limits.rest_q_rad, dtype=float)
+        return np.array(rated[0], dtype=float)
 
     def _track(self, targets: np.ndarray, rest: np.ndarray, rated: np.ndarray) -> np.ndarray:
         """Fit (with ``preview``) and track ``targets (n, J)`` from the last committed frame, or from ``q0``."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -16,7 +18,7 @@ def _chunked(case: dict, cuts: list[int]) -> np.ndarray:
     q, silent = case["q"], case["silent"]
     stage = SafetyStage(case["limits"], case["fps"], case["config"], case["q0"])
     edges = [0, *sorted(c % (q.shape[0] + 1) for c in cuts), q.shape[0]]
-    parts = [stage.extend(q[a:b], silent[a:b]) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    parts = [stage.extend(q[a:b], silent[a:b]) for a, b in itertools.pairwise(edges)]
     return np.vstack([*parts, stage.finish()])
 
 
