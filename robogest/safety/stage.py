@@ -118,20 +118,22 @@ class SafetyStage:
         self.limits: JointLimits = limits
         self.fps: float = float(fps)
         self.config: SafetyConfig = SafetyConfig() if config is None else config
-        self.dt_s = 1.0 / self.fps
-        self._kernel = gaussian_kernel(self.config.smooth_kernel, self.config.smooth_sigma)  # (k,) weights
-        self._q0 = None if q0 is None else checked_q0(q0, limits)
-        n_j = limits.n_joints
+        self.dt_s: float = 1.0 / self.fps
+        self._kernel: np.ndarray = gaussian_kernel(self.config.smooth_kernel, self.config.smooth_sigma)  # (k,) weights
+        self._q0: np.ndarray | None = None if q0 is None else checked_q0(q0, limits)
+        n_j: int = limits.n_joints
         empty = np.empty((0, n_j))
         self._pending: _Pending = _Pending(empty, empty, np.empty(0, bool), np.empty(0, bool))
         self._history: np.ndarray | None = None  # (r, J) clamped frames before the pending ones
         self._rate_in: np.ndarray | None = None  # (J,) last smoothed frame into the rate limiter
         self._rate_out: np.ndarray | None = None  # (J,) its output there
-        self._rate_exact = True  # the rate limiter has passed its input through unchanged so far
+        self._rate_exact: bool = True  # the rate limiter has passed its input through unchanged so far
         self._run_start: int | None = None  # frame where the silent run through the last committed frame began
         self._last: np.ndarray | None = None  # (≤2, J) the last frames committed
-        self._step = np.zeros(n_j)  # the tracker's last step, radians per frame
-        self._bounds = continuation_bounds(limits, self.dt_s, limits.rest_q_rad, self.config.margin_rad)
+        self._step: np.ndarray = np.zeros(n_j)  # the tracker's last step, radians per frame
+        self._bounds: tuple[np.ndarray, np.ndarray, np.ndarray | None] = continuation_bounds(
+            limits, self.dt_s, limits.rest_q_rad, self.config.margin_rad
+        )
         self.n_frames: int = 0  #: frames committed so far (input frames; the start of the next chunk)
         self.n_input: int = 0  #: frames received so far
         self.counts: StageCounts = StageCounts()
@@ -220,7 +222,7 @@ class SafetyStage:
         step = np.asarray(step_rad, dtype=float)
         check_finite(np.vstack([q, step]), self.limits, self.fps, frame)
         empty = np.empty((0, self.limits.n_joints))
-        self._pending: _Pending = _Pending(empty, empty, np.empty(0, bool), np.empty(0, bool))
+        self._pending = _Pending(empty, empty, np.empty(0, bool), np.empty(0, bool))
         self._history, self._run_start, self._ended = None, None, False
         self._rate_in, self._rate_out, self._rate_exact = q.copy(), q.copy(), False
         self._last, self._step = np.vstack([q - step, q]), step.copy()
@@ -310,7 +312,7 @@ class SafetyStage:
                 p = p + np.minimum(np.maximum(q[k] - p, neg), vstep)
                 out[k] = p
         self._rate_in, self._rate_out = q[-1].copy(), out[-1].copy()
-        return out
+        return np.asarray(out, dtype=float)
 
     def _start_pose(self, rated: np.ndarray | None) -> np.ndarray:
         if self._q0 is not None:

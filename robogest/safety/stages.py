@@ -45,7 +45,7 @@ def clamp_positions(q: np.ndarray, limits: JointLimits, margin_rad: float) -> np
     ndarray [shape=(T, J)], radians
     """
     lo, hi = limits.band(margin_rad)
-    return np.clip(_as_qt(q), lo, hi)
+    return np.asarray(np.clip(_as_qt(q), lo, hi), dtype=float)
 
 
 def gaussian_kernel(kernel: int, sigma: float | None = None) -> np.ndarray:
@@ -57,7 +57,7 @@ def gaussian_kernel(kernel: int, sigma: float | None = None) -> np.ndarray:
         raise InputError(f"smoothing sigma must be > 0 frames, got {sigma}")
     r = kernel // 2
     w = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
-    return w / w.sum()
+    return np.asarray(w / w.sum(), dtype=float)
 
 
 def smooth(q: np.ndarray, kernel: int = 5, sigma: float | None = None) -> np.ndarray:
@@ -81,7 +81,7 @@ def smooth(q: np.ndarray, kernel: int = 5, sigma: float | None = None) -> np.nda
     q = _as_qt(q)
     w = gaussian_kernel(kernel, sigma)
     if kernel == 1 or q.shape[0] == 0:
-        return q.copy()
+        return np.asarray(q.copy(), dtype=float)
     r = kernel // 2
     padded = np.pad(q, ((r, r), (0, 0)), mode="edge")
     t = q.shape[0]
@@ -108,16 +108,16 @@ def clamp_velocity(q: np.ndarray, v_max: np.ndarray, dt_s: float) -> np.ndarray:
     vstep = np.asarray(v_max, dtype=float) * dt_s
     out = q.copy()
     if q.shape[0] < 2:
-        return out
+        return np.asarray(out, dtype=float)
     d = np.diff(q, axis=0)
     if np.all(np.abs(d) <= vstep):  # nothing to do: keep the input bit-exact
-        return out
+        return np.asarray(out, dtype=float)
     p = out[0].copy()
     neg = -vstep
     for k in range(1, q.shape[0]):
         p = p + np.minimum(np.maximum(q[k] - p, neg), vstep)
         out[k] = p
-    return out
+    return np.asarray(out, dtype=float)
 
 
 def _brake_step(dist: np.ndarray, a_step: np.ndarray) -> np.ndarray:
@@ -138,7 +138,7 @@ def _brake_step(dist: np.ndarray, a_step: np.ndarray) -> np.ndarray:
     """
     m = np.floor(0.5 * (np.sqrt(1.0 + 8.0 * dist / a_step) - 1.0))
     m1 = m + 1.0
-    return (dist + 0.5 * a_step * m * m1) / m1
+    return np.asarray((dist + 0.5 * a_step * m * m1) / m1, dtype=float)
 
 
 def _tracking_band(limits: JointLimits, margin_rad: float) -> tuple[np.ndarray, np.ndarray]:
@@ -346,7 +346,7 @@ def _stop_distance(step: np.ndarray, a_step: np.ndarray) -> np.ndarray:
     included) while braking by ``A`` per frame (the inverse of :func:`_brake_step`)."""
     a = np.broadcast_to(a_step, step.shape)
     m = np.floor(step / a)
-    return (m + 1) * step - a * m * (m + 1) / 2
+    return np.asarray((m + 1) * step - a * m * (m + 1) / 2, dtype=float)
 
 
 def settle_tail(
@@ -357,7 +357,7 @@ def settle_tail(
     rest = limits.rest_q_rad
     at_rest = np.all(last == rest, axis=1)
     if at_rest[-1] and (last.shape[0] == 1 or at_rest[-2]):
-        return last[:0].copy()
+        return np.asarray(last[:0].copy(), dtype=float)
     lo, hi = _tracking_band(limits, margin_rad)
     n = math.ceil(rest_reach_time_s(p, limits, 1.0 / dt_s) / dt_s) + 2
     ext = np.empty((n, last.shape[1]))
@@ -447,7 +447,7 @@ def limit_acceleration(
     q = _as_qt(q)
     if q0 is None:
         if q.shape[0] == 0:
-            return q.copy()
+            return np.asarray(q.copy(), dtype=float)
         lo, hi = _tracking_band(limits, margin_rad)
         q0 = np.clip(q[0], lo, hi)
     return track(q, limits, dt_s, q0, margin_rad=margin_rad)[: q.shape[0]]
