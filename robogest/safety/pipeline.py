@@ -109,6 +109,18 @@ def apply_safety(
         Shapes that do not match, or a bad ``fps``.
     """
     config = SafetyConfig() if config is None else config
+    q, fps, silent = _checked_input(q, limits, fps, silent)
+    stage = SafetyStage(limits, fps, config, q0)  # the one stage the stream uses too, here in one chunk
+    out = np.vstack([stage.extend(q, silent, last=True), stage.finish()])
+    if not (np.all(np.abs(out[-1] - limits.rest_q_rad) <= TOL)):  # guard: the tracker guarantees this
+        raise SafetyError("safety: command trajectory does not end at rest (internal check)")
+    return _result(stage, out, silent, q.shape[0])
+
+
+def _checked_input(
+    q: np.ndarray, limits: JointLimits, fps: float, silent: np.ndarray | None
+) -> tuple[np.ndarray, float, np.ndarray]:
+    """``(q (T, J), fps, silent (T,) bool)`` checked, or :class:`InputError`/:class:`SafetyError` naming the input."""
     q = np.asarray(q, dtype=float)
     n_j = limits.n_joints
     if q.ndim != 2 or q.shape[1] != n_j:
@@ -118,20 +130,22 @@ def apply_safety(
     fps = float(fps)
     check_finite(q, limits, fps)
     n_t = q.shape[0]
-    silent = np.zeros(n_t, dtype=bool) if silent is None else np.asarray(silent)
-    if silent.shape != (n_t,):
-        raise InputError(f"safety: silent mask has shape {silent.shape}, expected ({n_t},) to match the motion")
-    silent = silent.astype(bool)
+    mask = np.zeros(n_t, dtype=bool) if silent is None else np.asarray(silent)
+    if mask.shape != (n_t,):
+        raise InputError(f"safety: silent mask has shape {mask.shape}, expected ({n_t},) to match the motion")
+    return q, fps, mask.astype(bool)
 
-    stage = SafetyStage(limits, fps, config, q0)  # the one stage the stream uses too, here in one chunk
-    out = np.vstack([stage.extend(q, silent, last=True), stage.finish()])
+
+def _result(stage: SafetyStage, out: np.ndarray, silent: np.ndarray, n_t: int) -> SafetyResult:
+    """The :class:`SafetyResult` of a whole motion of ``n_t`` frames made safe by ``stage`` as ``out (T', J)``."""
+    limits, fps = stage.limits, stage.fps
     n_out = out.shape[0]
     n_in_out = min(n_t, n_out)  # T == 0 still gives one frame (q0)
     rest_target_out = np.ones(n_out, dtype=bool)
     if n_t:
         rest_target_out[:n_t] = stage.rest_target
     long_silent = np.zeros(n_out, dtype=bool)
-    for a, b in long_silent_spans(silent, fps, config.rest_after_s):
+    for a, b in long_silent_spans(silent, fps, stage.config.rest_after_s):
         long_silent[a:b] = True
     at_rest = np.all(out == limits.rest_q_rad, axis=1)
     still = np.ones(n_out, dtype=bool)
@@ -139,8 +153,6 @@ def apply_safety(
     c = stage.counts
     n_samples = max(c.samples, 1)
     stats = {"clamp": c.clamp, "smooth": c.smooth, "velocity": c.velocity, "track": c.track}
-    if not (np.all(np.abs(out[-1] - limits.rest_q_rad) <= TOL)):  # guard: the tracker guarantees this
-        raise SafetyError("safety: command trajectory does not end at rest (internal check)")
     return SafetyResult(
         q_rad=out,
         hold_rest=rest_target_out & at_rest & still,
