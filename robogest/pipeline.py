@@ -54,18 +54,19 @@ def load_speech_input(
 
     if (text is None) == (audio is None):
         raise InputError("give either text to speak (TEXT, or --text) or --audio FILE (not both, not neither)")
-    if transcript is not None and audio is None:
+    if audio is not None:
+        return sp.load_speech(audio, transcript)
+    if transcript is not None:
         raise InputError("--transcript goes with --audio; with TEXT the words are already known")
-    if text is not None:
-        from robogest.generators.tags import ANY_TAG
+    from robogest.generators.tags import ANY_TAG
 
-        if not ANY_TAG.search(text):
-            return sp.synthesize(text, voice=voice, words_per_minute=words_per_minute)
-        from robogest.generators.animated_speech import synthesize_script
+    text = str(text)  # given: exactly one of text and audio is
+    if not ANY_TAG.search(text):
+        return sp.synthesize(text, voice=voice, words_per_minute=words_per_minute)
+    from robogest.generators.animated_speech import synthesize_script
 
-        # Tags are not spoken; Speech.text keeps them for the generator.
-        return synthesize_script(text, voice, words_per_minute, lenient=lenient, units=units)
-    return sp.load_speech(audio, transcript)
+    # Tags are not spoken; Speech.text keeps them for the generator.
+    return synthesize_script(text, voice, words_per_minute, lenient=lenient, units=units)
 
 
 def silent_mask(spans: tuple[tuple[float, float], ...], t_s: np.ndarray) -> np.ndarray:

@@ -23,23 +23,32 @@ The work per plan is bounded, whatever the utterance's length: generation starts
 the generator held rest (or, in speech without such a pause, a few seconds before the frames being played;
 :attr:`StreamingPlanner.window_s`), and only frames whose human pose changed are retargeted.
 
-Learned generators stay batch-only (they need the whole utterance's features); the streaming path uses
-``rhythm``.
+Safety is the batch path's own :class:`~robogest.safety.stage.SafetyStage`, resumed per plan from the frame before
+the plan's first (its position and step): rest pinning where the generator rests, the position band with the
+margin, the fit within the limits and tracking that continues the motion already played; the end of the utterance
+is the stage's way to rest. A plan the stage refuses stops the utterance (:class:`~robogest.errors.SafetyError`).
+
+The planner asks the generator what it can do only through :attr:`Generator.capabilities`: it must declare
+``streaming`` (learned generators do not: they need the whole utterance's features; the streaming path uses
+``rhythm``).
 """
 
 from __future__ import annotations
 
-import inspect
+import dataclasses
 import math
 import threading
 import time
 
 import numpy as np
 
-from robogest.generators.base import Generator
+from robogest.errors import InputError, SafetyError
+from robogest.generators.base import Generator, LivePlanState
 from robogest.motion.human_motion import HumanMotion
-from robogest.robot.config import LIMIT_MARGIN_RAD, RobotConfig
-from robogest.safety.limits import JointLimits
+from robogest.retarget.base import Retargeter
+from robogest.robot.config import RobotConfig
+from robogest.safety.limits import JointLimits, SafetyConfig
+from robogest.safety.stage import SafetyStage
 from robogest.speech.stream import SpeechStream
 from robogest.trajectory import Trajectory
 
@@ -101,13 +110,21 @@ class TrajectoryFeed:
         with self._lock:
             self._q = np.concatenate([self._q, q_rad])
 
-    def splice(self, start: int, q_rad: np.ndarray, blend_s: float = 0.25, pinned: np.ndarray | None = None) -> int:
+    def splice(
+        self,
+        start: int,
+        q_rad: np.ndarray,
+        blend_s: float = 0.25,
+        pinned: np.ndarray | None = None,
+        continuous: bool = False,
+    ) -> int:
         """Frames ``q_rad (K, J)`` radians for indices ``start..start+K-1``, replacing what is there.
 
         Frames the player has sampled are kept; the new ones take over from the first open frame (or the end of
         the feed, if it is shorter), offset to continue from the frame before it, the offset decaying over
         ``blend_s`` (memoryless: a minimum of motion added); ``pinned (K,)`` frames (rest) are taken as they are.
-        Returns how many frames of ``q_rad`` went in.
+        ``continuous``: ``q_rad[0]`` already continues frame ``start - 1`` (the safety stage resumed from it), so
+        no offset is added when the new frames go in at ``start``. Returns how many frames of ``q_rad`` went in.
         """
         q_rad = np.asarray(q_rad, float).reshape(-1, len(self.joint_names))
         with self._lock:
@@ -119,7 +136,7 @@ class TrajectoryFeed:
             if ks - start >= q_rad.shape[0]:
                 return 0
             new = q_rad[ks - start :].copy()
-            if ks > 0:  # continue from the last frame kept: the new plan's offset from it decays
+            if ks > 0 and not (continuous and ks == start):  # continue from the last frame kept: the offset decays
                 ref = q_rad[ks - start - 1] if ks > start else new[0]
                 k = np.arange(1, new.shape[0] + 1)[:, None]
                 blend = (old[ks - 1] - ref) * np.exp(-k / max(1e-9, blend_s / 3 * self.fps))
@@ -152,25 +169,20 @@ class TrajectoryFeed:
         if i >= q.shape[0] - 1:
             if not self.closed and t_s > self.known_s + 0.5 / self.fps:
                 self.underruns += 1
-            return q[-1].copy()
+            return np.array(q[-1], dtype=float)
         f = x - i
-        return (1 - f) * q[i] + f * q[i + 1]
+        return np.asarray((1 - f) * q[i] + f * q[i + 1], dtype=float)
 
     def sample_velocity(self, t_s: float) -> np.ndarray:
         """Slope ``(J,)`` rad/s of :meth:`sample` at ``t_s`` (0 outside the frames)."""
         q, _, i = self._index(t_s)
         if t_s < 0 or i >= q.shape[0] - 1:
             return np.zeros(q.shape[1])
-        return (q[i + 1] - q[i]) * self.fps
+        return np.asarray((q[i + 1] - q[i]) * self.fps, dtype=float)
 
     def to_trajectory(self) -> Trajectory:
         """The frames so far as a :class:`Trajectory` (for checks and saving)."""
         return Trajectory.for_robot(self._robot, self._q.copy(), self.fps)
-
-
-def _min_jerk(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x**3 * (10 - 15 * x + 6 * x * x)
 
 
 class StreamingPlanner:
@@ -197,15 +209,26 @@ class StreamingPlanner:
         generator rests (then it starts ``window_s / 2`` before the frames being played).
     preview : bool
         Fit each plan's new frames within the limits before tracking them
-        (:func:`~robogest.safety.stages.fit_within_limits`, as the batch path does), so a stroke too fast for
+        (:func:`~robogest.safety.fit.fit_within_limits`, as the batch path does), so a stroke too fast for
         the robot is centred on its plan rather than behind it; the fit sees only the frames planned so far.
+
+    Raises
+    ------
+    InputError
+        A generator that does not declare ``capabilities.streaming``.
     """
+
+    #: The stream's safety settings: the batch defaults without smoothing, which would hold each plan's last frames
+    #: back for its look-ahead (``kernel // 2`` frames) and blur the splice; silent periods come as the generator's
+    #: rest windows (pinned), not as a silent mask. The first plan starts still at its own first frame (the robot's
+    #: pose is the control loop's; its limiter takes the robot there).
+    SAFETY = SafetyConfig(smooth_kernel=1, start_from_rest=False)
 
     def __init__(
         self,
         robot: RobotConfig,
         generator: Generator,
-        retargeter,
+        retargeter: Retargeter,
         stream: SpeechStream,
         fps: float = 50.0,
         seed: int = 0,
@@ -214,6 +237,12 @@ class StreamingPlanner:
         window_s: float = 8.0,
         preview: bool = True,
     ) -> None:
+        caps = generator.capabilities
+        if not caps.streaming:
+            raise InputError(
+                f"generator {generator.name!r} cannot stream (it needs the whole utterance); stream with 'rhythm' "
+                "or speak the whole utterance with say()"
+            )
         self.robot = robot
         self.preview = preview
         self.generator = generator
@@ -226,18 +255,14 @@ class StreamingPlanner:
         self.feed = TrajectoryFeed(robot, fps)
         self.rest = np.asarray(robot.rest_q_rad, float)
         self.limits = JointLimits.from_robot(robot)
-        self.lo = robot.q_min_rad + LIMIT_MARGIN_RAD  # the batch safety layer's band
-        self.hi = robot.q_max_rad - LIMIT_MARGIN_RAD
+        self.safety_config = dataclasses.replace(self.SAFETY, preview=preview)
+        self.safety = SafetyStage(self.limits, fps, self.safety_config)
         self._human = np.empty((0, 0, 4))  # (K, B, 4) human rotations behind the feed's frames: retarget changes only
         self.start_s = 0.0  #: where the current generation window starts, seconds
         self.n_plans = 0
         self.plan_s: list[float] = []  #: wall time each plan took, seconds
         #: shared with the generator across this utterance's plans, when it plans live (``rhythm``)
-        self.live = None
-        if "live" in inspect.signature(generator.generate).parameters:
-            from robogest.generators.rhythm import LivePlan
-
-            self.live = LivePlan(replan_s=stream.update_s)
+        self.live: LivePlanState | None = generator.new_live_plan(stream.update_s) if caps.live_plan else None
 
     def _window_start(self, speech_rests: list[tuple[float, float]], received_s: float) -> float:
         """Start of the generation window: a rest window already heard, or a bounded stretch back."""
@@ -265,13 +290,12 @@ class StreamingPlanner:
         full = st.speech(pad_s=PAD_S)
         if full.n_frames < 2:
             return 0
-        rest_windows = getattr(self.generator, "rest_windows", None)
-        rests = rest_windows(full) if rest_windows is not None else []
+        rests = self.generator.rest_windows(full) if self.generator.capabilities.rest_windows else []
         self.start_s = self._window_start(rests, st.received_s)
         off = round(self.start_s * feed.fps)
         if self.live is not None:  # frames the player has used are final: new strokes start after them
             self.live.commit_s = feed.first_open / feed.fps
-            motion = self.generator.generate(full.crop(self.start_s), seed=self.seed, live=self.live)
+            motion = self.generator.generate_live(full.crop(self.start_s), self.live, seed=self.seed)
         else:
             motion = self.generator.generate(full.crop(self.start_s), seed=self.seed)
         motion = motion.resample(feed.fps)
@@ -289,45 +313,41 @@ class StreamingPlanner:
             pinned = np.zeros(len(q), bool)
             for a, b in rests:  # exactly at rest where the generator rests (the silent-period hint)
                 pinned |= (t >= a) & (t <= b)
-            q[pinned] = self.rest
-            q[:, self.limits.held_mask] = self.rest[self.limits.held_mask]  # whatever the retargeter did
-            q = self._feasible(np.clip(q, np.minimum(self.lo, self.rest), np.maximum(self.hi, self.rest)), first,
-                               pinned)  # fmt: skip
-            n = feed.splice(first, q, self.blend_s, pinned=pinned)
+            kept = max(first, feed.first_open)  # frames before it are played (or the reference before the change)
+            if kept - first < len(q):
+                q_safe = self._safe(q[kept - first :], kept, pinned[kept - first :])
+                n = feed.splice(kept, q_safe, self.blend_s, pinned=pinned[kept - first :], continuous=True)
             self._remember(motion.rotations, off, first, n_end)
             self.n_plans += 1
         if final:
             self._finish(n_end)
         return n
 
-    def _feasible(self, q: np.ndarray, first: int, pinned: np.ndarray) -> np.ndarray:
-        """``q (K, J)`` for frames ``first..`` made velocity- and acceleration-feasible from the frame before it, as
-        the batch safety layer's tracker does for a whole utterance. Without it the control loop's limiter
-        saturates on raw IK frames (measured on a 16 s paragraph: goals up to 62° from the plan, wrist-speed
-        correlation 0.51; with it 23° and 0.90, like the batch path's 5° and 0.99).
+    def _safe(self, q: np.ndarray, kept: int, pinned: np.ndarray) -> np.ndarray:
+        """The IK frames ``q (K, J)`` for feed frames ``kept..`` (the first the player has not used) made safe by the
+        stage, continuing the last frame
+        the player keeps (its position and step) as the batch path's tracker continues within one utterance.
+        Without it the control loop's limiter saturates on raw IK frames (measured on a 16 s paragraph: goals up to
+        62° from the plan, wrist-speed correlation 0.51; with it 23° and 0.90, like the batch path's 5° and 0.99).
 
-        A continuation the tracker refuses is never replaced by the unchecked frames: the :class:`SafetyError`
-        stops the utterance and the robot glides to rest, as any planner failure does."""
-        from robogest.errors import SafetyError
-        from robogest.safety.stages import fit_within_limits, track
-
-        feed = self.feed
-        if first == 0 or feed.n_frames < first:
-            return q
-        prev = feed.q_rad[first - 1]
-        step = prev - feed.q_rad[first - 2] if first >= 2 else np.zeros_like(prev)
-        rest = np.r_[False, pinned]
-        x = np.vstack([prev, q])
-        if self.preview:  # the frames planned so far, centred on their targets as the batch path does
-            x = fit_within_limits(x, self.limits, 1.0 / feed.fps, prev, step0=step, rest_mask=rest)
+        The result continues frame ``kept - 1`` (``splice(..., continuous=True)`` adds no offset to it). A plan the
+        stage
+        refuses is never replaced by the unchecked frames: the :class:`SafetyError` stops the utterance and the
+        robot glides to rest, as any planner failure does."""
+        feed, stage = self.feed, self.safety
+        if kept == 0 or feed.n_frames == 0:  # the utterance's start: still at its first frame
+            self.safety = stage = SafetyStage(self.limits, feed.fps, self.safety_config)
+        else:
+            ref = feed.q_rad[min(kept, feed.n_frames) - 1]  # past the end, the splice holds the last frame
+            step = ref - feed.q_rad[kept - 2] if 2 <= kept <= feed.n_frames else np.zeros_like(ref)
+            stage.resume(ref, step, kept - 1)
         try:
-            out = track(x, self.limits, 1.0 / feed.fps, prev, step0=step, rest_mask=rest)
+            return stage.extend(q, pinned=pinned)
         except SafetyError as e:
             raise SafetyError(
-                f"safety: streamed plan {self.n_plans + 1} (frames from {first / feed.fps:.2f} s) cannot continue "
+                f"safety: streamed plan {self.n_plans + 1} (frames from {kept / feed.fps:.2f} s) cannot continue "
                 f"the motion within the robot's limits, so the utterance stops and the robot glides to rest: {e}"
             ) from e
-        return out[1:]
 
     def _remember(self, rot: np.ndarray, off: int, first: int, n_end: int) -> None:
         """Keep the human poses behind frames ``first..n_end-1`` (``rot`` starts at frame ``off``)."""
@@ -346,14 +366,25 @@ class StreamingPlanner:
         return k0 + int(np.argmax(changed)) if changed.any() else k0 + n_old
 
     def _finish(self, n_end: int) -> None:
-        """End exactly at rest (a minimum-jerk glide if the generator's last frame is not), then close."""
+        """End exactly at rest (a minimum-jerk glide if the generator's last frame is not, made safe by the stage
+        like every plan, and the stage's way to rest if that does not arrive still), then close."""
         feed = self.feed
         if feed.closed:
             return
         feed.truncate(n_end)  # provisional frames planned past the end of the speech
-        last = feed.q_rad[-1]
-        if np.abs(last - self.rest).max() > 1e-9:
-            n = max(2, math.ceil(0.6 * feed.fps))
-            s = _min_jerk(np.arange(1, n + 1) / n)[:, None]
-            feed.append(last + (self.rest - last) * s)
+        q = feed.q_rad
+        if q.shape[0]:
+            last = q[-1]
+            self.safety.resume(last, last - q[-2] if q.shape[0] >= 2 else np.zeros_like(last), q.shape[0] - 1)
+            if np.abs(last - self.rest).max() > 1e-9:
+                n = max(2, math.ceil(0.6 * feed.fps))
+                s = _min_jerk(np.arange(1, n + 1) / n)[:, None]
+                feed.append(self.safety.extend(last + (self.rest - last) * s, pinned=np.arange(n) == n - 1))
+            feed.append(self.safety.finish())
         feed.close()
+
+
+def _min_jerk(x: np.ndarray) -> np.ndarray:
+    """Minimum-jerk profile ``(N,)`` from 0 to 1 over ``x`` in [0, 1]."""
+    x = np.clip(x, 0.0, 1.0)
+    return np.asarray(x**3 * (10 - 15 * x + 6 * x * x), dtype=float)

@@ -16,10 +16,10 @@ if TYPE_CHECKING:
 
 
 def _joint_list(idx: np.ndarray, names: tuple[str, ...]) -> str:
-    idx = [int(i) for i in np.atleast_1d(idx)]
+    ids = [int(i) for i in np.atleast_1d(idx)]
     if names:
-        return ", ".join(f"{names[i]!r} (#{i})" for i in idx)
-    return ", ".join(f"#{i}" for i in idx)
+        return ", ".join(f"{names[i]!r} (#{i})" for i in ids)
+    return ", ".join(f"#{i}" for i in ids)
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,7 +126,7 @@ class JointLimits:
         mid = 0.5 * (self.q_min_rad + self.q_max_rad)
         narrow = lo > hi
         lo, hi = np.where(narrow, mid, lo), np.where(narrow, mid, hi)
-        held = self.held_mask
+        held = np.zeros(self.n_joints, dtype=bool) if self.held_mask is None else self.held_mask  # set by __post_init__
         return np.where(held, self.rest_q_rad, lo), np.where(held, self.rest_q_rad, hi)
 
 

@@ -42,7 +42,7 @@ import numpy as np
 import ruckig
 
 from robogest.errors import InputError
-from robogest.robot.config import LIMIT_MARGIN_RAD
+from robogest.robot.config import LIMIT_MARGIN_RAD, RobotConfig
 
 #: Limits given to ruckig are shrunk by this factor so rounding never shows as a violation.
 _SHRINK = 1.0 - 1e-6
@@ -156,7 +156,7 @@ class OnlineLimiter:
     @classmethod
     def for_robot(
         cls,
-        robot,
+        robot: RobotConfig,
         period_s: float,
         q0_rad: np.ndarray,
         *,
@@ -222,7 +222,7 @@ class OnlineLimiter:
         cand = MotionState(self.state.q_rad, np.where(ok, v, 0.0), np.where(ok, a, 0.0))
         ok &= self._stops_inside(cand)
         self.state = MotionState(self.state.q_rad, np.where(ok, v, 0.0), np.where(ok, a, 0.0))
-        return ok
+        return np.asarray(ok, dtype=bool)
 
     @property
     def q_rad(self) -> np.ndarray:
@@ -232,7 +232,7 @@ class OnlineLimiter:
     def clamp_target(self, q_rad: np.ndarray) -> np.ndarray:
         """``q_rad`` ``(J,)`` clamped into the target band ``[q_min + margin, q_max − margin]`` ∪ rest (and, with
         ``stop_within_s``, to the poses from which rest can be reached in that time)."""
-        return np.clip(np.asarray(q_rad, dtype=float), self.band_lo_rad, self.band_hi_rad)
+        return np.asarray(np.clip(np.asarray(q_rad, dtype=float), self.band_lo_rad, self.band_hi_rad), dtype=float)
 
     @property
     def still(self) -> bool:
@@ -276,7 +276,7 @@ class OnlineLimiter:
             if cand is not None and self.stop_within_s is not None:
                 cand = self._keep_rest_within_reach(s, cand)
         ok = self._stops_inside(cand) if cand is not None else np.zeros(self.n_joints, dtype=bool)
-        if not ok.all():  # joints are independent: only those that could not stop inside brake
+        if cand is None or not ok.all():  # joints are independent: only those that could not stop inside brake
             brake = self._brake(s)
             if cand is None:
                 cand = brake
@@ -287,7 +287,7 @@ class OnlineLimiter:
                     np.where(ok, cand.a_rad_s2, brake.a_rad_s2),
                 )
         self._proposed = cand
-        return cand.q_rad.copy()
+        return np.array(cand.q_rad, dtype=float)
 
     def commit(self) -> None:
         """Adopt the last proposed goal: it was sent."""
@@ -368,11 +368,14 @@ class OnlineLimiter:
         """Joints whose candidate could not be at rest within ``stop_within_s`` take the time-optimal step towards
         rest instead. From a state within reach that step stays within reach (the rest of a time-optimal motion
         is time-optimal), so an interrupt is at rest within ``stop_within_s`` from every goal (induction)."""
-        t = self._min_durations_s(cand, self.rest_q_rad)
-        far = np.ones(self.n_joints, bool) if t is None else t > self.stop_within_s + 1e-9
+        rest, within_s = self.rest_q_rad, self.stop_within_s
+        if rest is None or within_s is None:  # only called with stop_within_s, which needs a rest pose
+            return cand
+        t = self._min_durations_s(cand, rest)
+        far = np.ones(self.n_joints, bool) if t is None else t > within_s + 1e-9
         if not far.any():
             return cand
-        home = self._follow(s, self.rest_q_rad, np.zeros(self.n_joints))
+        home = self._follow(s, rest, np.zeros(self.n_joints))
         if home is None:
             return cand  # the braking check that follows still keeps the limits
         self.envelope_ticks += 1

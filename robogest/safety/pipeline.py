@@ -8,19 +8,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robogest.errors import InputError, SafetyError
-from robogest.safety.limits import JointLimits, SafetyConfig, _joint_list
-from robogest.safety.stages import (
-    TOL,
-    clamp_positions,
-    clamp_velocity,
-    fit_within_limits,
-    long_silent_spans,
-    silent_rest_targets,
-    smooth,
-    track,
-)
-
-_CHANGED_RAD = 1e-6  # a stage "changed" a sample if it moved it by more than this
+from robogest.safety.limits import JointLimits, SafetyConfig
+from robogest.safety.rest import long_silent_spans
+from robogest.safety.stage import SafetyStage, check_finite
+from robogest.safety.stages import TOL
 
 
 @dataclass(eq=False)
@@ -66,18 +57,6 @@ class SafetyResult:
         return np.arange(self.q_rad.shape[0]) / self.fps
 
 
-def _check_finite(q: np.ndarray, limits: JointLimits, fps: float) -> None:
-    bad = ~np.isfinite(q)
-    if bad.any():
-        frames = np.flatnonzero(bad.any(axis=1))
-        joints = np.flatnonzero(bad.any(axis=0))
-        shown = ", ".join(f"{f} (t={f / fps:.3f} s)" for f in frames[:5]) + (" …" if frames.size > 5 else "")
-        raise SafetyError(
-            f"safety: motion contains NaN/inf at {int(bad.sum())} samples: frames {shown}; "
-            f"joints {_joint_list(joints, limits.names)}. The generator output is invalid; nothing was commanded."
-        )
-
-
 def apply_safety(
     q: np.ndarray,
     limits: JointLimits,
@@ -88,10 +67,12 @@ def apply_safety(
 ) -> SafetyResult:
     """Turn a retargeted motion into commands that respect every joint limit and rest in long silences.
 
-    Stages, in order: position clamp with margin → Gaussian smoothing → velocity clamp (without ``preview``) →
-    silent-rest targets → with ``config.preview``, :func:`~robogest.safety.stages.fit_within_limits` (zero-lag
-    fit within the limits) → :func:`~robogest.safety.stages.track` (velocity, acceleration and position limits at
-    once, starting from ``q0`` at standstill). Guarantees on ``q_rad`` (to 1e-9, rounding):
+    The whole motion goes through :class:`~robogest.safety.stage.SafetyStage` in one chunk (the stage the
+    streaming planner runs per plan). Stages, in order: position clamp with margin → Gaussian smoothing → velocity
+    clamp (without ``preview``) → silent-rest targets → with ``config.preview``,
+    :func:`~robogest.safety.fit.fit_within_limits` (zero-lag fit within the limits) →
+    :func:`~robogest.safety.stages.track` (velocity, acceleration and position limits at once, starting from ``q0``
+    at standstill). Guarantees on ``q_rad`` (to 1e-9, rounding):
 
     * ``q_rad[0] == q0`` exactly; every sample within ``[q_min, q_max]`` and within the margin band widened to
       include rest (and ``q0``, which is only ever left inwards);
@@ -128,6 +109,18 @@ def apply_safety(
         Shapes that do not match, or a bad ``fps``.
     """
     config = SafetyConfig() if config is None else config
+    q, fps, silent = _checked_input(q, limits, fps, silent)
+    stage = SafetyStage(limits, fps, config, q0)  # the one stage the stream uses too, here in one chunk
+    out = np.vstack([stage.extend(q, silent, last=True), stage.finish()])
+    if not (np.all(np.abs(out[-1] - limits.rest_q_rad) <= TOL)):  # guard: the tracker guarantees this
+        raise SafetyError("safety: command trajectory does not end at rest (internal check)")
+    return _result(stage, out, silent, q.shape[0])
+
+
+def _checked_input(
+    q: np.ndarray, limits: JointLimits, fps: float, silent: np.ndarray | None
+) -> tuple[np.ndarray, float, np.ndarray]:
+    """``(q (T, J), fps, silent (T,) bool)`` checked, or :class:`InputError`/:class:`SafetyError` naming the input."""
     q = np.asarray(q, dtype=float)
     n_j = limits.n_joints
     if q.ndim != 2 or q.shape[1] != n_j:
@@ -135,88 +128,39 @@ def apply_safety(
     if isinstance(fps, bool) or not (isinstance(fps, numbers.Real) and np.isfinite(fps) and fps > 0):
         raise InputError(f"safety: fps must be a finite number > 0, got {fps!r}")
     fps = float(fps)
-    _check_finite(q, limits, fps)
+    check_finite(q, limits, fps)
     n_t = q.shape[0]
-    if silent is None:
-        silent = np.zeros(n_t, dtype=bool)
-    silent = np.asarray(silent)
-    if silent.shape != (n_t,):
-        raise InputError(f"safety: silent mask has shape {silent.shape}, expected ({n_t},) to match the motion")
-    silent = silent.astype(bool)
-    dt = 1.0 / fps
+    mask = np.zeros(n_t, dtype=bool) if silent is None else np.asarray(silent)
+    if mask.shape != (n_t,):
+        raise InputError(f"safety: silent mask has shape {mask.shape}, expected ({n_t},) to match the motion")
+    return q, fps, mask.astype(bool)
 
-    q_clamp = clamp_positions(q, limits, config.margin_rad)
-    q_smooth = smooth(q_clamp, config.smooth_kernel, config.smooth_sigma)
-    q_vel = clamp_velocity(q_smooth, limits.v_max_rad_s, dt)
 
-    if q0 is None:
-        q0 = limits.rest_q_rad.copy() if config.start_from_rest or n_t == 0 else q_vel[0].copy()
-    q0 = np.asarray(q0, dtype=float)
-    if q0.shape != (n_j,):
-        raise InputError(f"safety: q0 has shape {q0.shape}, expected ({n_j},)")
-    bad = np.flatnonzero(~np.isfinite(q0))
-    if bad.size:
-        raise SafetyError(f"safety: current pose q0 is NaN/inf for joints {_joint_list(bad, limits.names)}")
-    bad = np.flatnonzero((q0 < limits.q_min_rad) | (q0 > limits.q_max_rad))
-    if bad.size:
-        raise SafetyError(
-            f"safety: current pose q0 is outside the joint limits for joints {_joint_list(bad, limits.names)}; "
-            "move the robot inside its limits (or fix the limits) before commanding it"
-        )
-
-    src = q_smooth if config.preview else q_vel  # the fit keeps the velocity limit itself, without lag
-    targets, rest_target = silent_rest_targets(
-        src, silent, limits.rest_q_rad, fps, config.rest_after_s, config.rest_leave_s
-    )
-    if config.preview and n_t > 1:
-        targets = fit_within_limits(targets, limits, dt, q0, margin_rad=config.margin_rad, rest_mask=rest_target)
-    out = track(targets, limits, dt, q0, margin_rad=config.margin_rad, rest_mask=rest_target, settle=True)
+def _result(stage: SafetyStage, out: np.ndarray, silent: np.ndarray, n_t: int) -> SafetyResult:
+    """The :class:`SafetyResult` of a whole motion of ``n_t`` frames made safe by ``stage`` as ``out (T', J)``."""
+    limits, fps = stage.limits, stage.fps
     n_out = out.shape[0]
     n_in_out = min(n_t, n_out)  # T == 0 still gives one frame (q0)
-    n_extra = n_out - n_in_out
-
-    rest_target_out = np.zeros(n_out, dtype=bool)
-    rest_target_out[:n_in_out] = rest_target[:n_in_out]
-    rest_target_out[n_in_out:] = True
-    if n_t == 0:
-        rest_target_out[:] = True
+    rest_target_out = np.ones(n_out, dtype=bool)
+    if n_t:
+        rest_target_out[:n_t] = stage.rest_target
     long_silent = np.zeros(n_out, dtype=bool)
-    for a, b in long_silent_spans(silent, fps, config.rest_after_s):
+    for a, b in long_silent_spans(silent, fps, stage.config.rest_after_s):
         long_silent[a:b] = True
     at_rest = np.all(out == limits.rest_q_rad, axis=1)
     still = np.ones(n_out, dtype=bool)
     still[1:] = np.all(out[1:] == out[:-1], axis=1)
-    hold_rest = rest_target_out & at_rest & still
-
-    def changed(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return np.abs(a - b) > _CHANGED_RAD
-
-    n_samples = max(n_in_out * n_j, 1)
-    if n_in_out:
-        c_clamp = changed(q_clamp[:n_in_out], q[:n_in_out])
-        c_smooth = changed(q_smooth[:n_in_out], q_clamp[:n_in_out])
-        c_vel = changed(q_vel[:n_in_out], q_smooth[:n_in_out])
-        c_track = changed(out[:n_in_out], src[:n_in_out]) & ~rest_target[:n_in_out, None]
-        stats = {
-            "clamp": c_clamp.sum() / n_samples,
-            "smooth": c_smooth.sum() / n_samples,
-            "velocity": c_vel.sum() / n_samples,
-            "track": c_track.sum() / n_samples,
-        }
-        clipped = float((c_clamp | c_vel | c_track).sum() / n_samples)
-    else:
-        stats = {"clamp": 0.0, "smooth": 0.0, "velocity": 0.0, "track": 0.0}
-        clipped = 0.0
-    if not (np.all(np.abs(out[-1] - limits.rest_q_rad) <= TOL)):  # guard: the tracker guarantees this
-        raise SafetyError("safety: command trajectory does not end at rest (internal check)")
+    c = stage.counts
+    n_samples = max(c.samples, 1)
+    stats = {"clamp": c.clamp, "smooth": c.smooth, "velocity": c.velocity, "track": c.track}
     return SafetyResult(
         q_rad=out,
-        hold_rest=hold_rest,
+        hold_rest=rest_target_out & at_rest & still,
         rest_target=rest_target_out,
         long_silent=long_silent,
         fps=fps,
         n_input_frames=n_t,
-        n_extra_frames=n_extra,
-        clipped_fraction=clipped,
-        stage_changed_fraction={k: float(v) for k, v in stats.items()},
+        n_extra_frames=n_out - n_in_out,
+        clipped_fraction=c.any_limit / n_samples,
+        stage_changed_fraction={k: v / n_samples for k, v in stats.items()},
     )

@@ -18,12 +18,10 @@ import numpy as np
 
 from robogest.errors import InputError, SafetyError
 from robogest.safety.limits import JointLimits, SafetyConfig, opencv_sigma
+from robogest.safety.rest import long_silent_spans as long_silent_spans  # where the session tests look for it
 
 #: Slack for comparing constraint values after floating-point arithmetic (radians).
 TOL = 1e-9
-#: Weight of a rest frame's error in :func:`fit_within_limits` (1 elsewhere): the fit arrives at rest where the
-#: tracker must.
-REST_WEIGHT = 100.0
 
 
 def _as_qt(q: np.ndarray, name: str = "q") -> np.ndarray:
@@ -47,7 +45,7 @@ def clamp_positions(q: np.ndarray, limits: JointLimits, margin_rad: float) -> np
     ndarray [shape=(T, J)], radians
     """
     lo, hi = limits.band(margin_rad)
-    return np.clip(_as_qt(q), lo, hi)
+    return np.asarray(np.clip(_as_qt(q), lo, hi), dtype=float)
 
 
 def gaussian_kernel(kernel: int, sigma: float | None = None) -> np.ndarray:
@@ -59,7 +57,7 @@ def gaussian_kernel(kernel: int, sigma: float | None = None) -> np.ndarray:
         raise InputError(f"smoothing sigma must be > 0 frames, got {sigma}")
     r = kernel // 2
     w = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
-    return w / w.sum()
+    return np.asarray(w / w.sum(), dtype=float)
 
 
 def smooth(q: np.ndarray, kernel: int = 5, sigma: float | None = None) -> np.ndarray:
@@ -83,7 +81,7 @@ def smooth(q: np.ndarray, kernel: int = 5, sigma: float | None = None) -> np.nda
     q = _as_qt(q)
     w = gaussian_kernel(kernel, sigma)
     if kernel == 1 or q.shape[0] == 0:
-        return q.copy()
+        return np.asarray(q.copy(), dtype=float)
     r = kernel // 2
     padded = np.pad(q, ((r, r), (0, 0)), mode="edge")
     t = q.shape[0]
@@ -110,16 +108,16 @@ def clamp_velocity(q: np.ndarray, v_max: np.ndarray, dt_s: float) -> np.ndarray:
     vstep = np.asarray(v_max, dtype=float) * dt_s
     out = q.copy()
     if q.shape[0] < 2:
-        return out
+        return np.asarray(out, dtype=float)
     d = np.diff(q, axis=0)
     if np.all(np.abs(d) <= vstep):  # nothing to do: keep the input bit-exact
-        return out
+        return np.asarray(out, dtype=float)
     p = out[0].copy()
     neg = -vstep
     for k in range(1, q.shape[0]):
         p = p + np.minimum(np.maximum(q[k] - p, neg), vstep)
         out[k] = p
-    return out
+    return np.asarray(out, dtype=float)
 
 
 def _brake_step(dist: np.ndarray, a_step: np.ndarray) -> np.ndarray:
@@ -140,92 +138,7 @@ def _brake_step(dist: np.ndarray, a_step: np.ndarray) -> np.ndarray:
     """
     m = np.floor(0.5 * (np.sqrt(1.0 + 8.0 * dist / a_step) - 1.0))
     m1 = m + 1.0
-    return (dist + 0.5 * a_step * m * m1) / m1
-
-
-def fit_within_limits(
-    targets: np.ndarray,
-    limits: JointLimits,
-    dt_s: float,
-    q0: np.ndarray,
-    *,
-    margin_rad: float = SafetyConfig.margin_rad,
-    rest_mask: np.ndarray | None = None,
-    step0: np.ndarray | None = None,
-) -> np.ndarray:
-    """The trajectory closest to ``targets`` (weighted least squares) that keeps the position band, velocity and
-    acceleration limits and starts still at ``q0``: the whole-trajectory counterpart of :func:`track`.
-
-    A causal follower can only react, so where a stroke is faster than the robot allows it falls behind and its
-    speed peak lands late (measured on the default generator's output for humanoid_xl430: 20-60 ms behind the
-    IK targets, wrist-speed correlation 0.64-0.83; README, Safety). Knowing the whole trajectory, this starts such
-    a move early and ends it late, centred on the target. One convex quadratic programme per joint (banded,
-    solved by the interior-point solver ``piqp``); the result is feasible only to the solver's tolerance, so it
-    is a *target* for :func:`track`, which makes every limit hold exactly.
-
-    Parameters
-    ----------
-    targets : ndarray [shape=(T, J)], radians
-        Frame 0 is ignored (it is ``q0``).
-    limits : JointLimits
-    dt_s : float, seconds
-    q0 : ndarray [shape=(J,)], radians
-        Start pose, standstill before it (as :func:`track` assumes).
-    margin_rad : float, radians
-    rest_mask : ndarray [shape=(T,)], bool, optional
-        Frames whose target is rest (as for :func:`track`): their error weighs :data:`REST_WEIGHT` times more,
-        so the fit arrives there, and they are returned as their targets, for :func:`track` to brake onto.
-    step0 : ndarray [shape=(J,)], radians per frame, optional
-        The step that led to ``q0`` (a continuation, as in :func:`track`); clipped to the velocity limit.
-
-    Returns
-    -------
-    ndarray [shape=(T, J)], radians
-        Frame 0 is ``q0`` and rest frames are their targets. A joint whose programme the solver does not solve
-        keeps its targets (:func:`track` then follows them causally, as it does without this stage).
-    """
-    import piqp
-    import scipy.sparse as sparse
-
-    x = _as_qt(targets, "targets")
-    q0 = np.asarray(q0, dtype=float)
-    n_t, n_j = x.shape
-    rest = np.zeros(n_t, bool) if rest_mask is None else np.asarray(rest_mask, dtype=bool)
-    out = x.copy()
-    if n_t:
-        out[0] = q0
-    n = n_t - 1  # unknowns: frames 1..T-1
-    if n < 3:
-        return np.where(rest[:, None], x, out)
-    lo, hi = _tracking_band(limits, margin_rad)
-    vstep = limits.v_max_rad_s * dt_s
-    astep = limits.a_max_rad_s2 * dt_s * dt_s
-    w = np.where(rest[1:], REST_WEIGHT, 1.0)
-    s0 = np.zeros(n_j) if step0 is None else np.clip(np.asarray(step0, dtype=float), -vstep, vstep)
-    ones = np.ones(n)
-    d1 = sparse.diags([ones, -ones[1:]], [0, -1], shape=(n, n))  # row k: y[k+1] - y[k] (row 0: y[1], minus q0)
-    d2 = sparse.diags([ones, -2 * ones[1:], ones[2:]], [0, -1, -2], shape=(n, n))  # second differences
-    g = sparse.vstack([d1, d2], format="csc")
-    p = sparse.diags(w, format="csc")
-    for j in range(n_j):
-        if limits.held_mask[j]:  # band = its rest angle: track pins it, nothing to fit
-            continue
-        c = q0[j]
-        # the rows that involve q0 (and the standstill before it) move it to the bounds
-        g_lo = np.r_[np.full(n, -vstep[j]), np.full(n, -astep[j])]
-        g_hi = -g_lo
-        g_lo[0] += c
-        g_hi[0] += c
-        g_lo[n] += c + s0[j]  # y[1] - 2 q0 + (q0 - step0)
-        g_hi[n] += c + s0[j]
-        g_lo[n + 1] -= c  # y[2] - 2 y[1] + q0
-        g_hi[n + 1] -= c
-        solver = piqp.SparseSolver()
-        solver.setup(p, -w * x[1:, j], None, None, g, g_lo, g_hi,
-                     np.full(n, min(lo[j], c)), np.full(n, max(hi[j], c)))  # fmt: skip
-        if solver.solve() == piqp.PIQP_SOLVED and np.all(np.isfinite(solver.result.x)):
-            out[1:, j] = solver.result.x
-    return np.where(rest[:, None], x, out)
+    return np.asarray((dist + 0.5 * a_step * m * m1) / m1, dtype=float)
 
 
 def _tracking_band(limits: JointLimits, margin_rad: float) -> tuple[np.ndarray, np.ndarray]:
@@ -368,6 +281,27 @@ def track(
     SafetyError
         If the result would break a limit (a bug guard, not expected) or cannot settle.
     """
+    out, p, s = track_run(targets, limits, dt_s, q0, margin_rad=margin_rad, rest_mask=rest_mask, step0=step0)
+    if settle:
+        out = np.vstack([out, settle_tail(out[-2:], p, s, limits, dt_s, margin_rad)])
+    lo_ok, hi_ok, s0 = continuation_bounds(limits, dt_s, np.asarray(q0, dtype=float), margin_rad, step0)
+    check_limits(out, limits, dt_s, lo_ok, hi_ok, s0)  # the hard limits always
+    return out
+
+
+def track_run(
+    targets: np.ndarray,
+    limits: JointLimits,
+    dt_s: float,
+    q0: np.ndarray,
+    *,
+    margin_rad: float = SafetyConfig.margin_rad,
+    rest_mask: np.ndarray | None = None,
+    step0: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`track` without settling or the final check: ``(out (max(T, 1), J), p (J,), s (J,))``, the frames and
+    the tracker's last position and step (radians, radians per frame), from which a later call or
+    :func:`settle_tail` continues exactly."""
     x = _as_qt(targets, "targets")
     q0 = np.asarray(q0, dtype=float)
     n_t, n_j = x.shape
@@ -386,15 +320,25 @@ def track(
     out[0] = q0
     s0 = np.zeros(n_j) if step0 is None else np.clip(np.asarray(step0, dtype=float), -vstep, vstep)
     p, s = _run_tracker(x[1:], w[1:], q0.copy(), s0.copy(), lo, hi, vstep, astep, out[1:])
-    if settle:
-        out = _settle(out, p, s, limits, dt_s, lo, hi, vstep, astep)
+    return out, p, s
+
+
+def continuation_bounds(
+    limits: JointLimits, dt_s: float, q0: np.ndarray, margin_rad: float, step0: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """``(lo, hi, step0)`` that :func:`check_limits` holds a tracked run from ``q0`` to: the margin band widened to
+    rest and ``q0`` (left inwards only) and, for a continuation arriving towards an edge (``step0``, clipped to
+    the velocity limit as the tracker clips it), by its stopping distance: it brakes at ``A`` from frame 1."""
+    lo, hi = _tracking_band(limits, margin_rad)
     lo_ok, hi_ok = np.minimum(lo, q0), np.maximum(hi, q0)
-    if step0 is not None:  # a continuation arriving towards an edge brakes at A from frame 1: the margin absorbs it
-        reach = _stop_distance(np.abs(s0), astep)  # (J,) radians still travelled while braking
-        lo_ok = np.where(s0 < 0, np.minimum(lo_ok, q0 - reach), lo_ok)
-        hi_ok = np.where(s0 > 0, np.maximum(hi_ok, q0 + reach), hi_ok)
-    check_limits(out, limits, dt_s, lo_ok, hi_ok, None if step0 is None else s0)  # the hard limits always
-    return out
+    if step0 is None:
+        return lo_ok, hi_ok, None
+    vstep = limits.v_max_rad_s * dt_s
+    s0 = np.clip(np.asarray(step0, dtype=float), -vstep, vstep)
+    reach = _stop_distance(np.abs(s0), limits.a_max_rad_s2 * dt_s * dt_s)  # (J,) radians travelled while braking
+    lo_ok = np.where(s0 < 0, np.minimum(lo_ok, q0 - reach), lo_ok)
+    hi_ok = np.where(s0 > 0, np.maximum(hi_ok, q0 + reach), hi_ok)
+    return lo_ok, hi_ok, s0
 
 
 def _stop_distance(step: np.ndarray, a_step: np.ndarray) -> np.ndarray:
@@ -402,38 +346,39 @@ def _stop_distance(step: np.ndarray, a_step: np.ndarray) -> np.ndarray:
     included) while braking by ``A`` per frame (the inverse of :func:`_brake_step`)."""
     a = np.broadcast_to(a_step, step.shape)
     m = np.floor(step / a)
-    return (m + 1) * step - a * m * (m + 1) / 2
+    return np.asarray((m + 1) * step - a * m * (m + 1) / 2, dtype=float)
 
 
-def _settle(
-    out: np.ndarray,
-    p: np.ndarray,
-    s: np.ndarray,
+def settle_tail(
+    last: np.ndarray, p: np.ndarray, s: np.ndarray, limits: JointLimits, dt_s: float, margin_rad: float
+) -> np.ndarray:
+    """Frames ``(N, J)`` to append after ``last`` (the last one or two frames, ``(≤2, J)``) that bring the tracker,
+    at position ``p`` moving ``s`` per frame, to ``limits.rest_q_rad`` with zero velocity (none if it is there)."""
+    rest = limits.rest_q_rad
+    at_rest = np.all(last == rest, axis=1)
+    if at_rest[-1] and (last.shape[0] == 1 or at_rest[-2]):
+        return np.asarray(last[:0].copy(), dtype=float)
+    lo, hi = _tracking_band(limits, margin_rad)
+    n = math.ceil(rest_reach_time_s(p, limits, 1.0 / dt_s) / dt_s) + 2
+    ext = np.empty((n, last.shape[1]))
+    x = np.broadcast_to(rest, ext.shape)
+    vstep, astep = limits.v_max_rad_s * dt_s, limits.a_max_rad_s2 * dt_s * dt_s
+    _run_tracker(x, np.zeros_like(ext), p, s, lo, hi, vstep, astep, ext)
+    both = np.vstack([last[-1:], ext])
+    done = np.flatnonzero(np.all(both[1:] == rest, axis=1) & np.all(both[:-1] == rest, axis=1))
+    if done.size == 0:
+        raise SafetyError("safety: the robot could not be brought to rest within the computed bound (bug)")
+    return ext[: done[0] + 1]
+
+
+def check_limits(
+    q: np.ndarray,
     limits: JointLimits,
     dt_s: float,
     lo: np.ndarray,
     hi: np.ndarray,
-    vstep: np.ndarray,
-    astep: np.ndarray,
-) -> np.ndarray:
-    """Append frames targeting rest until the output rests there with zero velocity."""
-    rest = limits.rest_q_rad
-    at_rest = np.all(out == rest, axis=1)
-    if at_rest[-1] and (out.shape[0] == 1 or at_rest[-2]):
-        return out
-    n = math.ceil(rest_reach_time_s(p, limits, 1.0 / dt_s) / dt_s) + 2
-    ext = np.empty((n, out.shape[1]))
-    x = np.broadcast_to(rest, ext.shape)
-    _run_tracker(x, np.zeros_like(ext), p, s, lo, hi, vstep, astep, ext)
-    both = np.vstack([out[-1:], ext])
-    done = np.flatnonzero(np.all(both[1:] == rest, axis=1) & np.all(both[:-1] == rest, axis=1))
-    if done.size == 0:
-        raise SafetyError("safety: the robot could not be brought to rest within the computed bound (bug)")
-    return np.vstack([out, ext[: done[0] + 1]])
-
-
-def check_limits(
-    q: np.ndarray, limits: JointLimits, dt_s: float, lo: np.ndarray, hi: np.ndarray, d0: np.ndarray | None = None
+    d0: np.ndarray | None = None,
+    frame0: int = 0,
 ) -> None:
     """Raise :class:`SafetyError` unless ``q`` is finite, within ``[lo, hi]``, ``|d| ≤ V`` and ``|Δd| ≤ A`` (+ ``TOL``).
 
@@ -446,6 +391,8 @@ def check_limits(
     lo, hi : ndarray [shape=(J,)], radians
     d0 : ndarray [shape=(J,)], radians per frame, optional
         The step that led to ``q[0]``.
+    frame0 : int
+        Frame number of ``q[0]`` in the message (a chunk of a longer trajectory).
     """
     if not np.all(np.isfinite(q)):  # NaN compares False with every bound below
         raise SafetyError("safety: command trajectory holds NaN or infinite angles (internal check)")
@@ -470,7 +417,7 @@ def check_limits(
         name = limits.names[j] if len(limits.names) > j else f"joint {j}"
         raise SafetyError(
             f"safety: command trajectory breaks the {'/'.join(what)} limit (internal check); first: {name} at frame "
-            f"{t} ({t * dt_s:.2f} s): {first}"
+            f"{t + frame0} ({(t + frame0) * dt_s:.2f} s): {first}"
         )
 
 
@@ -500,66 +447,7 @@ def limit_acceleration(
     q = _as_qt(q)
     if q0 is None:
         if q.shape[0] == 0:
-            return q.copy()
+            return np.asarray(q.copy(), dtype=float)
         lo, hi = _tracking_band(limits, margin_rad)
         q0 = np.clip(q[0], lo, hi)
     return track(q, limits, dt_s, q0, margin_rad=margin_rad)[: q.shape[0]]
-
-
-def long_silent_spans(silent_mask: np.ndarray, fps: float, rest_after_s: float) -> list[tuple[int, int]]:
-    """Maximal runs ``[start, end)`` of silent frames lasting at least ``rest_after_s`` (``(end−start)/fps``).
-
-    Parameters
-    ----------
-    silent_mask : ndarray [shape=(T,)], bool
-    fps : float, frames/s
-    rest_after_s : float, seconds
-    """
-    m = np.asarray(silent_mask, dtype=bool)
-    edges = np.diff(np.concatenate([[False], m, [False]]).astype(np.int8))
-    starts = np.flatnonzero(edges == 1)
-    ends = np.flatnonzero(edges == -1)
-    need = rest_after_s * fps - 1e-9
-    return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True) if b - a >= need]
-
-
-def silent_rest_targets(
-    q: np.ndarray,
-    silent_mask: np.ndarray,
-    rest_q: np.ndarray,
-    fps: float,
-    rest_after_s: float,
-    rest_leave_s: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Replace the targets of long silent periods with the rest pose.
-
-    Inside each run of silent frames ``[a, b)`` lasting at least ``rest_after_s``, frames ``a ≤ k < L``
-    target rest, where ``L`` is the first frame with ``k/fps ≥ b/fps − rest_leave_s`` (the robot may leave
-    then, to be back in place when speech resumes), or ``L = b`` when the run reaches the end of ``q``.
-
-    Parameters
-    ----------
-    q : ndarray [shape=(T, J)], radians
-    silent_mask : ndarray [shape=(T,)], bool
-    rest_q : ndarray [shape=(J,)], radians
-    fps : float, frames/s
-    rest_after_s, rest_leave_s : float, seconds
-
-    Returns
-    -------
-    targets : ndarray [shape=(T, J)], radians
-    hold_mask : ndarray [shape=(T,)], bool
-        Frames whose target is rest.
-    """
-    q = _as_qt(q)
-    n_t = q.shape[0]
-    silent_mask = np.asarray(silent_mask, dtype=bool)
-    if silent_mask.shape != (n_t,):
-        raise InputError(f"silent mask has shape {silent_mask.shape}, expected ({n_t},) to match q")
-    targets = q.copy()
-    hold = np.zeros(n_t, dtype=bool)
-    for a, b in long_silent_spans(silent_mask, fps, rest_after_s):
-        leave = b if b == n_t else max(a, math.ceil(b - rest_leave_s * fps - 1e-9))
-        hold[a:leave] = True
-    targets[hold] = rest_q
-    return targets, hold

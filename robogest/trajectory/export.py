@@ -24,6 +24,7 @@ import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -84,7 +85,8 @@ def write_csv(traj: Trajectory, path: Path) -> None:
         np.savetxt(tmp, table, fmt=fmt, delimiter=",", header=header, comments="")
 
 
-def _rosbags():
+def _rosbags() -> tuple[Any, Any, Any]:
+    """rosbags' ``StoragePlugin``, ``Writer`` and the ROS 2 Humble type store (untyped library classes)."""
     try:
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore

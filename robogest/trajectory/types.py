@@ -79,10 +79,14 @@ class Trajectory:
         all False (no rest windows).
         """
         n = len(q_rad)
-        if (fps is None) == (t_s is None):
+        if t_s is None and fps is not None:
+            times = np.arange(n) / fps
+        elif t_s is not None and fps is None:
+            times = t_s
+        else:
             raise ValueError("Trajectory.for_robot needs exactly one of fps and t_s")
         return cls(
-            t_s=np.arange(n) / fps if t_s is None else t_s,
+            t_s=times,
             q_rad=q_rad,
             joint_names=robot.joint_names,
             q_min_rad=robot.q_min_rad,
@@ -112,19 +116,19 @@ class Trajectory:
     def sample(self, t_s: float) -> np.ndarray:
         """Linearly interpolated command ``(J,)`` at time ``t_s`` (held at the ends)."""
         if self.n_frames == 0:
-            return self.rest_q_rad.copy()
+            return np.array(self.rest_q_rad, dtype=float)
         k = float(np.clip(t_s * self.fps, 0, self.n_frames - 1))
         i0 = int(np.floor(k))
         i1 = min(i0 + 1, self.n_frames - 1)
         w = k - i0
-        return (1 - w) * self.q_rad[i0] + w * self.q_rad[i1]
+        return np.asarray((1 - w) * self.q_rad[i0] + w * self.q_rad[i1], dtype=float)
 
     def sample_velocity(self, t_s: float) -> np.ndarray:
         """Velocity ``(J,)`` rad/s of :meth:`sample` at ``t_s``: the slope of the segment there (0 at the ends)."""
         if self.n_frames < 2 or t_s < 0 or t_s >= self.duration_s:
             return np.zeros(self.q_rad.shape[1])
         i0 = min(int(np.floor(t_s * self.fps)), self.n_frames - 2)
-        return (self.q_rad[i0 + 1] - self.q_rad[i0]) * self.fps
+        return np.asarray((self.q_rad[i0 + 1] - self.q_rad[i0]) * self.fps, dtype=float)
 
     def save(self, path: str | Path) -> None:
         """Write an ``.npz`` atomically (a crash never leaves a half-written file)."""
@@ -172,8 +176,11 @@ class Trajectory:
             k.removeprefix(ANNOTATION_PREFIX): _numbers(z, k, None, path) for k in z if k.startswith(ANNOTATION_PREFIX)
         }
         return cls(
-            t_s=t, q_rad=q, joint_names=[str(s) for s in names], silent=silent != 0, **kw, **text, annotations=notes
-        )
+            t_s=t, q_rad=q, joint_names=[str(s) for s in names], q_min_rad=kw["q_min_rad"],
+            q_max_rad=kw["q_max_rad"], v_max_rad_s=kw["v_max_rad_s"], a_max_rad_s2=kw["a_max_rad_s2"],
+            rest_q_rad=kw["rest_q_rad"], silent=silent != 0, audio_path=text["audio_path"], robot=text["robot"],
+            annotations=notes,
+        )  # fmt: skip
 
 
 def saved_audio_path(path: str | Path) -> str:
@@ -205,7 +212,7 @@ def _numbers(
     if shape is not None and a.shape != shape:
         raise InputError(f"{path}: {key} has shape {a.shape}, expected {shape} to match q_rad")
     if a.dtype.kind == "b":
-        return a.copy()
+        return np.array(a, dtype=bool)
     a = a.astype(np.float64)
     if finite and not np.isfinite(a).all():
         k = int(np.flatnonzero(~np.isfinite(a.reshape(-1)))[0])

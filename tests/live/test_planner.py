@@ -136,9 +136,9 @@ def test_each_plan_generates_over_a_bounded_stretch(cfg):
     gen = make_generator("rhythm")
     generate = gen.generate
 
-    def spy(sp, seed=0):
+    def spy(sp, seed=0, **live):
         seen.append(sp.duration_s)
-        return generate(sp, seed=seed)
+        return generate(sp, seed=seed, **live)
 
     gen.generate = spy  # type: ignore[method-assign]
     st = SpeechStream(sr)
@@ -245,18 +245,58 @@ def test_blas_thread_limit_is_the_sessions_own_and_restored_on_close():
 def test_a_plan_the_tracker_refuses_stops_the_utterance_instead_of_playing_unchecked_frames(cfg, tts, monkeypatch):
     """Where the tracker cannot continue the motion within the limits, the stream must not fall back to the raw IK
     frames: the refusal is raised (the session then stops the utterance and glides to rest)."""
-    import robogest.safety.stages as stages
     from robogest.errors import SafetyError
+    from robogest.safety.stage import SafetyStage
 
-    real_track, calls = stages.track, []
+    real_track, calls = SafetyStage._track, []
 
-    def refusing_track(*args, **kwargs):
+    def refusing_track(self, *args, **kwargs):
         calls.append(1)
-        if len(calls) > 1:  # the first continuation is tracked; the next is refused
+        if len(calls) > 1:  # the first plan is tracked; the next is refused
             raise SafetyError("safety: simulated refusal")
-        return real_track(*args, **kwargs)
+        return real_track(self, *args, **kwargs)
 
-    monkeypatch.setattr(stages, "track", refusing_track)
+    monkeypatch.setattr(SafetyStage, "_track", refusing_track)
     with pytest.raises(SafetyError, match=r"streamed plan \d+ .* glides to rest: safety: simulated refusal"):
         _stream_with_player(cfg, tts)
     assert len(calls) == 2
+
+
+def test_a_continuous_splice_adds_no_offset_and_a_plain_one_does(cfg):
+    j = len(cfg.joints)
+    ramp = np.linspace(0.0, 0.2, 20)[:, None] * np.ones(j)
+    for continuous, offset in ((True, False), (False, True)):
+        feed = TrajectoryFeed(cfg, fps=50.0)
+        feed.splice(0, ramp[:10])
+        feed.splice(10, ramp[10:], continuous=continuous)
+        assert np.array_equal(feed.q_rad, ramp) != offset
+
+
+def test_the_streamed_feed_keeps_the_velocity_and_acceleration_limits_across_plans(cfg, tts):
+    """Each plan resumes the batch path's safety stage from the last frame kept and splices without an offset, so the
+    feed (every plan's frames, the end's way to rest included) stays within the limits the batch path keeps
+    (before the stage, on this sentence: 126 frames above the acceleration limit, up to 8.2 times)."""
+    pl, _ = _stream_with_player(cfg, tts)
+    q, dt = pl.feed.q_rad, 1.0 / pl.feed.fps
+    d = np.diff(q, axis=0)
+    assert np.all(np.abs(d) <= cfg.v_max_rad_s * dt + 1e-9)
+    assert np.all(np.abs(np.diff(d, axis=0)) <= cfg.a_max_rad_s2 * dt * dt + 1e-9)
+    np.testing.assert_array_equal(q[-1], cfg.rest_q_rad)
+
+
+def test_the_planner_reads_capabilities_and_refuses_a_batch_only_generator(cfg):
+    from robogest.generators.base import Capabilities, Generator
+
+    class BatchOnly(Generator):
+        name = "batch_only"
+
+        def generate(self, speech, seed=0):
+            raise AssertionError("not called")
+
+    assert BatchOnly.capabilities == Capabilities()  # nothing declared: batch only
+    with pytest.raises(InputError, match="'batch_only' cannot stream"):
+        StreamingPlanner(cfg, BatchOnly(), DirectionIK(cfg), SpeechStream(16000))
+    rhythm = make_generator("rhythm")
+    assert rhythm.capabilities.streaming and rhythm.capabilities.live_plan and rhythm.capabilities.rest_windows
+    pl = StreamingPlanner(cfg, rhythm, DirectionIK(cfg), SpeechStream(16000))
+    assert pl.live is not None

@@ -20,7 +20,8 @@ from robogest.safety import (
     smooth,
     track,
 )
-from robogest.safety.stages import _brake_step, check_limits, fit_within_limits
+from robogest.safety.fit import fit_within_limits
+from robogest.safety.stages import _brake_step, check_limits
 
 
 def limits1(q_min=-20.0, q_max=20.0, v=10.0, a=1.0, rest=0.0, n=1) -> JointLimits:

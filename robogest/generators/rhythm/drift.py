@@ -34,7 +34,7 @@ def loudness(db: np.ndarray, t: np.ndarray) -> np.ndarray:
     db = gaussian_filter1d(np.where(heard, db, np.percentile(db[heard], 20)), LOUDNESS_SMOOTH_S / HOP_S)
     lo, hi = np.percentile(db[heard], 20), np.percentile(db[heard], 95)
     loud = np.clip((db - lo) / max(hi - lo, 1e-6), 0.0, 1.0)
-    return np.interp(t, np.arange(db.size) * HOP_S, loud)
+    return np.asarray(np.interp(t, np.arange(db.size) * HOP_S, loud), dtype=float)
 
 
 def sway(
@@ -69,7 +69,7 @@ def sway(
     out[:, DOF["head_pitch"]] = 0.5 * a * np.sin(2 * np.pi * 0.31 * ta + ph[2])
     out[:, DOF["head_yaw"]] = 0.8 * a * np.sin(2 * np.pi * 0.13 * ta + ph[3])
     _drift(c, out, t, ta, ph, loud, beats_s, drift_m_s)
-    return out * env[:, None]
+    return np.asarray(out * env[:, None])
 
 
 def _drift(

@@ -8,9 +8,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from robogest.errors import InputError
 from robogest.generators import lexicon as lx
 from robogest.generators.acoustic import AcousticBeats, band_loudness_db
-from robogest.generators.base import Generator, register_generator
+from robogest.generators.base import Capabilities, Generator, LivePlanState, register_generator
 from robogest.generators.poses import DOF, HEAD_DOFS, dofs_to_rotations
 from robogest.generators.rhythm import arms, beats, drift, timeline, units
 from robogest.generators.rhythm.config import RhythmConfig, check_config
@@ -29,6 +30,7 @@ class RhythmGenerator(Generator):
     """Rule-based, beat-synchronous gestures from a hand-authored lexicon; works on a fresh install."""
 
     name = "rhythm"
+    capabilities = Capabilities(streaming=True, live_plan=True, rest_windows=True, silent_spans=True)
 
     def __init__(
         self, config: RhythmConfig | None = None, repertoire: lx.Repertoire | None = None, **overrides: float | str
@@ -45,6 +47,16 @@ class RhythmGenerator(Generator):
     def rest_windows(self, speech: Speech) -> list[tuple[float, float]]:
         """Spans ``(t0, t1)`` in which the motion is exactly the rest pose."""
         return beats.rest_windows(self.config, speech)
+
+    def new_live_plan(self, replan_s: float) -> LivePlan:
+        """A :class:`LivePlan` for one stream, plans ``replan_s`` seconds apart."""
+        return LivePlan(replan_s=replan_s)
+
+    def generate_live(self, speech: Speech, live: LivePlanState, seed: int = 0) -> HumanMotion:
+        """:meth:`generate` as one plan of a stream sharing ``live`` (a :class:`LivePlan`)."""
+        if not isinstance(live, LivePlan):
+            raise InputError(f"rhythm: a live plan must come from new_live_plan(), got {type(live).__name__}")
+        return self.generate(speech, seed=seed, live=live)
 
     def beats(self, speech: Speech, loudness_db: np.ndarray | None = None, stressed: bool = True) -> AcousticBeats:
         """Where strokes may land (:func:`.beats.speech_beats`): acoustic beats outside silent periods and, if

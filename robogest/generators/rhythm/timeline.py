@@ -54,7 +54,7 @@ class Track:
         span = np.where(j > i, kt[j] - kt[i], 1.0)
         s = np.clip((t_s - kt[i]) / span, 0.0, 1.0)
         w = (s**3 * (10 - 15 * s + 6 * s**2))[:, None]  # (T, 1) minimum-jerk blend
-        return kv[i] + (kv[j] - kv[i]) * w
+        return np.asarray(kv[i] + (kv[j] - kv[i]) * w)
 
 
 class WristPaths:
