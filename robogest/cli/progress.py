@@ -13,6 +13,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import TextIO
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -20,15 +21,15 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 QUIET_FIRST_S = 1.0
 
 
-def _is_real_file(stream: object) -> bool:
+def _is_real_file(stream: TextIO) -> bool:
     try:
-        return stream.fileno() >= 0  # type: ignore[attr-defined]
+        return stream.fileno() >= 0
     except (AttributeError, OSError, ValueError):
         return False
 
 
 def progress_lines(
-    label: str, stream=None, clock: Callable[[], float] = time.monotonic, eta: bool = False
+    label: str, stream: TextIO | None = None, clock: Callable[[], float] = time.monotonic, eta: bool = False
 ) -> Callable[[int, int], None]:
     """A callback printing ``robogest: LABEL: P% (done/total)`` at each new 10 % step after ``QUIET_FIRST_S``;
     with ``eta``, followed by ``, about N s left`` once the work has advanced since the first update.
