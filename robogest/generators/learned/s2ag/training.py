@@ -87,7 +87,7 @@ class S2AGSpec:
     def make_windows(
         self,
         takes: Sequence[Take],
-        norm: Normalization,
+        norm: Normalization | None,
         config: S2AGConfig,
         length: int,
         stride: int,
