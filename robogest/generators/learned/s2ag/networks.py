@@ -51,6 +51,10 @@ from robogest.generators.learned.s2ag.skeleton import (
     part_adjacency,
 )
 
+#: What the generator returns: edge vectors ``(B, T, 27)``, style ``z`` and its ``mu``, ``logvar`` ``(B, D_s)``
+#: (the last two None without a speaker).
+GeneratorOutput = tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, torch.Tensor | None]
+
 
 class STGCNBlock(nn.Module):
     """Spatial graph convolution over a fixed adjacency, then a temporal convolution over ±2 frames (ST-GCN)."""
@@ -147,7 +151,7 @@ class S2AGGeneratorNet(nn.Module):
         seed: torch.Tensor,
         speaker: torch.Tensor | None = None,
         z: torch.Tensor | None = None,
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, torch.Tensor | None]:
+    ) -> GeneratorOutput:
         """Edge vectors of one window.
 
         Parameters
@@ -256,16 +260,7 @@ class S2AGNet(nn.Module):
         self.generator = S2AGGeneratorNet(config)
         self.discriminator = S2AGDiscriminator(config)
 
-    def forward(
-        self,
-        mfcc: torch.Tensor,
-        text: torch.Tensor,
-        seed: torch.Tensor,
-        speaker: torch.Tensor | None = None,
-        z: torch.Tensor | None = None,
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, torch.Tensor | None]:
+    def forward(self, *args: torch.Tensor | None, **kwargs: torch.Tensor | None) -> GeneratorOutput:
         """The generator's :meth:`S2AGGeneratorNet.forward`."""
-        out: tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, torch.Tensor | None] = self.generator(
-            mfcc, text, seed, speaker, z
-        )
+        out: GeneratorOutput = self.generator(*args, **kwargs)
         return out
