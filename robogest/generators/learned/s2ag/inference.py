@@ -39,6 +39,8 @@ class S2AGGenerator(CheckpointGenerator):
 
     config_cls = S2AGConfig
     net_cls = S2AGNet
+    model: S2AGNet  # the base keeps whichever family's network and config it loaded: here these
+    config: S2AGConfig
 
     def configure(self, speaker: npt.ArrayLike | None = None, **options: Any) -> None:
         """Check the model's data statistics and set the style ``speaker`` (see the class); any other option is
