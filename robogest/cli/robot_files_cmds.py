@@ -124,7 +124,8 @@ def _overrides(args: argparse.Namespace) -> dict:
             raw = load_yaml(read_text_capped(args.map, what="--map"))
             if raw is not None and not isinstance(raw, dict):
                 raise InputError(
-                    f"--map {args.map}: a YAML mapping (arms:, head:, hold:, forward:), not a list or value"
+                    f"--map {args.map}: a {type(raw).__name__}, not a mapping; write arms/head/hold/forward as in "
+                    "the import: section of an imported robot"
                 )
             out = ImportRecord.model_validate({"source": str(args.map), **(raw or {})}).model_dump(exclude={"source"})
         except Exception as e:
