@@ -278,7 +278,7 @@ def read_npz(
                     )
         with np.load(p, allow_pickle=False) as z:
             for k in z.files:
-                if keys is None or f"{k}.npy" in wanted:
+                if wanted is None or f"{k}.npy" in wanted:
                     out[k] = z[k]
     except InputError:
         raise

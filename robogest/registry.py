@@ -71,7 +71,7 @@ class Registry(Generic[F]):
             raise InputError(f"unknown {self.kind} {name!r}; choose one of {', '.join(self.names())}")
         dist = f" from package {ep.dist.name!r}" if ep.dist is not None else ""
         try:
-            factory = ep.load()
+            factory: F = ep.load()  # the entry point's object, checked callable below
         except Exception as e:  # any import-time failure of someone else's code: one line, no traceback
             raise InputError(
                 f"{self.kind} {name!r} (plugin {ep.value}{dist}) failed to load: {type(e).__name__}: {e}; "

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -17,6 +18,11 @@ from robogest.fileio import npz_keys
 
 if TYPE_CHECKING:
     import numpy as np
+
+    from robogest.eval.fgd import FGDEvaluator
+    from robogest.motion.human_motion import HumanMotion
+    from robogest.speech.types import Speech
+    from robogest.trajectory.types import Trajectory
 
 MOTION_SUFFIXES = (".bvh", ".npz")
 AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".mp3")
@@ -88,7 +94,7 @@ def _match(pred: Path, others: list[Path] | None, single: bool, what: str) -> Pa
     raise InputError(f"{pred}: no {what} with stem {pred.stem!r} to pair with")
 
 
-def load_input(path: Path):
+def load_input(path: Path) -> tuple[str, Trajectory | HumanMotion]:
     """``("trajectory", Trajectory)`` or ``("motion", HumanMotion)``; InputError naming the file otherwise."""
 
     try:
@@ -109,7 +115,7 @@ def load_input(path: Path):
         raise InputError(f"{path}: cannot read ({type(e).__name__}: {e})") from None
 
 
-def load_speech_for(audio: Path, transcript: Path | None):
+def load_speech_for(audio: Path, transcript: Path | None) -> Speech:
     try:
         from robogest.speech import load_speech
     except ImportError:
@@ -127,7 +133,7 @@ def load_speech_for(audio: Path, transcript: Path | None):
 # ----------------------------------------------------------------------------------------------- core
 
 
-def _robot_wrists(traj, achieved_q_rad: np.ndarray | None) -> np.ndarray | None:
+def _robot_wrists(traj: Trajectory, achieved_q_rad: np.ndarray | None) -> np.ndarray | None:
     """Wrist-site positions ``(T, W, 3)`` m of the robot a trajectory names (its achieved motion when simulated),
     or None when the robot is not known here: stroke sync is then left out, the other metrics still run."""
     from robogest.backends.mujoco_sim import wrist_site_positions
@@ -161,7 +167,7 @@ def smplx_poses(path: Path) -> tuple[np.ndarray, float] | None:
     return poses.astype(np.float64), float(np.asarray(rate).reshape(-1)[0])
 
 
-def fgd_of_pair(evaluator, pred_path: Path, gt_path: Path | None) -> dict:
+def fgd_of_pair(evaluator: FGDEvaluator, pred_path: Path, gt_path: Path | None) -> dict:
     """FGD of one SMPL-X pair and its real-vs-real floor (gt's first half against its second half).
 
     ``_features`` (pred, gt latent features) is kept for the pooled FGD and dropped from JSON.
@@ -193,13 +199,15 @@ def evaluate_files(
     transcript_path: Path | None = None,
     n_shifts: int = 100,
     sim: bool = False,
-    fgd_evaluator=None,
+    fgd_evaluator: FGDEvaluator | None = None,
 ) -> dict:
     """Metrics of one pred file (with its gt/audio files, any may be None) as a nested dict; FGD with
     ``fgd_evaluator`` (:class:`robogest.eval.fgd.FGDEvaluator`)."""
     import numpy as np
 
     from robogest.eval.report import evaluate_motion, evaluate_trajectory
+    from robogest.motion.human_motion import HumanMotion
+    from robogest.trajectory.types import Trajectory
 
     kind, pred = load_input(pred_path)
     gt_kind, gt = load_input(gt_path) if gt_path else (None, None)
@@ -212,13 +220,13 @@ def evaluate_files(
 
         speech = load_speech_for(audio_path, transcript_path)
         beats = np.asarray(speech.beats_s, dtype=np.float64)[~np.asarray(speech.beat_is_pseudo, dtype=bool)]
-        spans = [tuple(map(float, s)) for s in speech.silent_spans]
+        spans = [(float(a), float(b)) for a, b in speech.silent_spans]
         # stressed vowels when the transcript is a forced alignment with phones, else librosa onsets (unvalidated)
         onsets, events = stroke_sync_events(speech.audio, speech.sr, transcript_path)
     res: dict
-    if kind == "trajectory":
+    if isinstance(pred, Trajectory):  # kind "trajectory"
         gt_q = None
-        if gt is not None:
+        if isinstance(gt, Trajectory):  # gt None or of pred's kind (checked above)
             if list(gt.joint_names) != list(pred.joint_names):
                 raise InputError(f"{gt_path}: joints {gt.joint_names} differ from {pred_path}'s {pred.joint_names}")
             t = pred.t_s[pred.t_s <= gt.duration_s + 1e-9]
@@ -237,17 +245,18 @@ def evaluate_files(
             pred, gt_q, beats, spans, n_shifts=n_shifts, achieved_q_rad=achieved, onsets_s=onsets, wrist_pos_m=wrists
         )
     else:
-        if gt is not None and gt.skeleton.names != pred.skeleton.names:
+        gt_motion = gt if isinstance(gt, HumanMotion) else None  # gt is None or of pred's kind (checked above)
+        if gt_motion is not None and gt_motion.skeleton.names != pred.skeleton.names:
             raise InputError(f"{gt_path}: skeleton differs from {pred_path}'s")
         gt_pos = None
-        if gt is not None:
-            res_gt = gt.resample(pred.fps) if gt.fps != pred.fps else gt
+        if gt_motion is not None:
+            res_gt = gt_motion.resample(pred.fps) if gt_motion.fps != pred.fps else gt_motion
             gt_pos = res_gt.positions()
         res = evaluate_motion(
             pred.positions(), pred.fps, pred.skeleton.names, gt_pos, beats, spans, n_shifts, onsets_s=onsets
         )
-        if gt is not None and gt.fps != pred.fps:
-            res["gt_resampled_from_fps"] = float(gt.fps)
+        if gt_motion is not None and gt_motion.fps != pred.fps:
+            res["gt_resampled_from_fps"] = float(gt_motion.fps)
     if fgd_evaluator is not None:
         res["fgd"] = fgd_of_pair(fgd_evaluator, pred_path, gt_path)
     for key in ("beat_sync", "gt_beat_sync"):
@@ -291,15 +300,13 @@ def _print_table(results: dict[str, dict]) -> None:
 
     for stem, r in results.items():
         title = escape(f"{stem} ({r['kind']}, {r['n_frames']} frames at {r['fps']:g} fps)")
-        rows = [[escape(name), value] for name, value in summary_rows(r)]
+        rows: list[Sequence[str]] = [[escape(name), value] for name, value in summary_rows(r)]
         print_table(TextTable(title, ["metric", "value"], rows, right_aligned=["value"]))
 
 
-def _drop_private(obj):
-    """``obj`` without dict keys starting with ``_`` (objects and arrays kept for plots and pooling)."""
-    if isinstance(obj, dict):
-        return {k: _drop_private(v) for k, v in obj.items() if not str(k).startswith("_")}
-    return obj
+def _drop_private(obj: dict) -> dict:
+    """``obj`` without dict keys starting with ``_``, at any depth (objects and arrays kept for plots and pooling)."""
+    return {k: _drop_private(v) if isinstance(v, dict) else v for k, v in obj.items() if not str(k).startswith("_")}
 
 
 def _pooled_fgd(results: dict[str, dict]) -> dict | None:

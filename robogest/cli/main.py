@@ -23,7 +23,7 @@ import sys
 import threading
 import warnings
 from collections.abc import Callable, Iterator, Sequence
-from typing import Any
+from typing import TextIO
 
 from robogest.cli.checks import OneLineParser, require_extras
 from robogest.errors import RobogestError
@@ -58,8 +58,8 @@ EXIT_BROKEN_PIPE = 141
 class _VersionAction(argparse.Action):
     """``--version``: the installed distribution's version, looked up only when asked (keeps --help fast)."""
 
-    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS, **kwargs: object) -> None:
-        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS, help: str | None = None) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, help=help)
 
     def __call__(self, parser: argparse.ArgumentParser, *args: object) -> None:
         from robogest._version import __version__
@@ -107,12 +107,12 @@ class _StderrHandler(logging.StreamHandler):
     def __init__(self) -> None:
         super().__init__(sys.stderr)
 
-    @property  # type: ignore[override]
-    def stream(self) -> Any:
+    @property
+    def stream(self) -> TextIO:
         return sys.stderr
 
     @stream.setter
-    def stream(self, value: Any) -> None:
+    def stream(self, value: TextIO) -> None:
         pass
 
 
@@ -142,7 +142,14 @@ def _quiet_stdout() -> None:
 def _one_line_warnings(show: Callable[..., None]) -> Callable[..., None]:
     """``warnings.showwarning`` printing robogest's own warnings as one ``robogest: warning: ...`` line."""
 
-    def show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    def show_warning(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
         from robogest.errors import RobogestWarning
 
         if issubclass(category, RobogestWarning):
@@ -223,7 +230,7 @@ def _run(argv: Sequence[str] | None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    _configure_logging(getattr(args, "log_level", None) or getattr(args, "default_log_level", "warning"))
+    _configure_logging(str(getattr(args, "log_level", None) or getattr(args, "default_log_level", "warning")))
     try:
         require_extras(args)  # a missing extra fails before any work
         with _terminate_like_ctrl_c():

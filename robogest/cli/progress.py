@@ -13,6 +13,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import TextIO
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -20,16 +21,16 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 QUIET_FIRST_S = 1.0
 
 
-def _is_real_file(stream: object) -> bool:
+def _is_real_file(stream: TextIO) -> bool:
     try:
-        return stream.fileno() >= 0  # type: ignore[attr-defined]
+        return stream.fileno() >= 0
     except (AttributeError, OSError, ValueError):
         return False
 
 
 def progress_lines(
-    label: str, stream=None, clock: Callable[[], float] = time.monotonic, eta: bool = False
-) -> Callable[[int, int], None]:
+    label: str, stream: TextIO | None = None, clock: Callable[[], float] = time.monotonic, eta: bool = False
+) -> Callable[[float, float], None]:
     """A callback printing ``robogest: LABEL: P% (done/total)`` at each new 10 % step after ``QUIET_FIRST_S``;
     with ``eta``, followed by ``, about N s left`` once the work has advanced since the first update.
 
@@ -40,7 +41,7 @@ def progress_lines(
     first: tuple[float, float] | None = None  # (time, done) of the first update: set-up before it is not the rate
     last_step = -1
 
-    def update(done: int, total: int) -> None:
+    def update(done: float, total: float) -> None:
         nonlocal last_step, first
         now = clock()
         if first is None:
@@ -71,7 +72,7 @@ def _time_left_s(first: tuple[float, float], now: float, done: float, total: flo
 
 
 @contextmanager
-def progress_bar(label: str, eta: bool = False) -> Iterator[Callable[[int, int], None]]:
+def progress_bar(label: str, eta: bool = False) -> Iterator[Callable[[float, float], None]]:
     """A progress callback for ``label``: a rich bar with the time left on a terminal, else
     :func:`progress_lines` (with the time left if ``eta``)."""
     if not sys.stderr.isatty():
@@ -83,7 +84,7 @@ def progress_bar(label: str, eta: bool = False) -> Iterator[Callable[[int, int],
     ) as prog:  # fmt: skip
         task = prog.add_task(label, total=None)
 
-        def update(done: int, total: int) -> None:
+        def update(done: float, total: float) -> None:
             prog.update(task, completed=done, total=total)
 
         yield update

@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from robogest.errors import ConfigError
 
+if TYPE_CHECKING:
+    from robogest.tools.importer.parts import Parts
 
-def add_parsers(sub: Any) -> None:
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
     """Add the subcommands to ``robogest robots``."""
     p = sub.add_parser("validate", help="check a robot's YAML against its MuJoCo model, servos and retargeting")
     p.add_argument("robot", help="robot name or YAML path")
@@ -119,6 +122,11 @@ def _overrides(args: argparse.Namespace) -> dict:
 
         try:
             raw = load_yaml(read_text_capped(args.map, what="--map"))
+            if raw is not None and not isinstance(raw, dict):
+                raise InputError(
+                    f"--map {args.map}: a {type(raw).__name__}, not a mapping; write arms/head/hold/forward as in "
+                    "the import: section of an imported robot"
+                )
             out = ImportRecord.model_validate({"source": str(args.map), **(raw or {})}).model_dump(exclude={"source"})
         except Exception as e:
             if isinstance(e, InputError):
@@ -144,13 +152,13 @@ def _overrides(args: argparse.Namespace) -> dict:
     return out
 
 
-def print_parts(res) -> None:
+def print_parts(parts: Parts) -> None:
     """The table the user checks: each part, its joints in chain order, and why."""
     from robogest.cli.common import TextTable, print_table
 
     t = TextTable("body parts found (check them; override with --arm/--head/--hold/--forward)",
                   ["part", "joints (chain order)", "why"])  # fmt: skip
-    for part, joints, why in res.parts.rows:
+    for part, joints, why in parts.rows:
         t.rows.append([part, ", ".join(joints), why])
     print_table(t)
 
@@ -163,7 +171,8 @@ def cmd_import(args: argparse.Namespace) -> int:
     res = import_description(args.description, args.out, name=args.name, overwrite=args.force,
                              overrides=_overrides(args), search_paths=args.search_path)  # fmt: skip
     print(f"wrote {res.yaml_path}, {res.mjcf_path}, {res.scene_path}")
-    print_parts(res)
+    if res.parts is not None:  # the importer always finds parts; None only from a hand-made result
+        print_parts(res.parts)
     print("guessed (edit the YAML and the MJCF, or import again with overrides, to change it):")
     for g in res.guesses:
         print(f"  - {g}")

@@ -19,7 +19,13 @@ from robogest.cli.common import (
 from robogest.robot.registry import DEFAULT_ROBOT
 
 if TYPE_CHECKING:  # imported lazily: `robogest --help` must not load numpy
+    from collections.abc import Mapping
+
     import numpy as np
+
+    from robogest.backends.base import Backend
+    from robogest.robot.config import RobotConfig
+    from robogest.trajectory import Trajectory
 
 SPEAK_EPILOG = """examples:
   robogest speak "Hello, I am a robot. Nice to meet you!" --video out/hello.mp4
@@ -115,7 +121,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.set_defaults(func=run_play)
 
 
-def _check_paths(args: argparse.Namespace, inputs: dict[str, str | None]) -> None:
+def _check_paths(args: argparse.Namespace, inputs: Mapping[str, str | list[str] | None]) -> None:
     """Refuse bad output paths before any work (see :func:`robogest.cli.checks.check_outputs`)."""
     outputs = {"--save": args.save, "--video": args.video, "--plot": args.plot}
     if args.export and Path(args.export).suffix:  # a file (.mcap, .csv); a bag folder is check_export's to judge
@@ -165,7 +171,7 @@ def _check_export(args: argparse.Namespace) -> None:
         check_export(args.export)
 
 
-def _hardware_backend(args: argparse.Namespace, robot):
+def _hardware_backend(args: argparse.Namespace, robot: RobotConfig) -> Backend | None:
     """The real backend ``--backend`` names, made before any work (None for the simulator), so an unknown backend,
     a missing port, a robot file the servos cannot keep or a simulator-only flag fails before anything is computed
     or written."""
@@ -184,7 +190,14 @@ def _hardware_backend(args: argparse.Namespace, robot):
     return backend
 
 
-def _finish(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr: int, backend=None) -> None:
+def _finish(
+    args: argparse.Namespace,
+    robot: RobotConfig,
+    traj: Trajectory,
+    audio: np.ndarray | None,
+    sr: int,
+    backend: Backend | None = None,
+) -> None:
     """Save, export, then play on the chosen backend (``backend``, from :func:`_hardware_backend`; the simulator
     when None), printing each result as soon as it is known."""
     from robogest.cli.progress import progress_bar
@@ -222,7 +235,9 @@ def _tag_units(generator: str, opts: dict) -> dict | None:
     return (opts.get("repertoire") or lx.default_repertoire()).units
 
 
-def _simulate(args: argparse.Namespace, robot, traj, audio: np.ndarray | None, sr: int) -> None:
+def _simulate(
+    args: argparse.Namespace, robot: RobotConfig, traj: Trajectory, audio: np.ndarray | None, sr: int
+) -> None:
     """Play on the simulator; with ``--video``, say first at what size and on what renderer, and in the progress
     line how long the rest will take."""
     from robogest.backends.mujoco_sim import simulate

@@ -32,11 +32,15 @@ import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robogest.data.features import FeatureConfig, motion_to_expmap, speech_inputs, text_encoder_for
 from robogest.errors import InputError
+
+if TYPE_CHECKING:
+    from robogest.text import TextEncoder
 
 _AUDIO_EXT = (".wav", ".flac", ".ogg", ".mp3")
 _MOTION_EXT = (".bvh", ".npz")
@@ -290,7 +294,10 @@ def _read_entry(entry: Path, name: str, audio: Path | None) -> Take:
 
 
 def compute_take(
-    files: TakeFiles, config: FeatureConfig, encoder=None, warn: Callable[[str], None] | None = None
+    files: TakeFiles,
+    config: FeatureConfig,
+    encoder: TextEncoder | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> Take:
     """Read and align one take (no cache).
 
@@ -325,7 +332,7 @@ def load_take(
     files: TakeFiles,
     config: FeatureConfig,
     cache_dir: str | os.PathLike | None = None,
-    encoder=None,
+    encoder: TextEncoder | None = None,
     warn: Callable[[str], None] | None = None,
     build: bool = True,
 ) -> Take | None:

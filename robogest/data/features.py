@@ -10,7 +10,7 @@ import dataclasses
 import hashlib
 import json
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,6 +20,9 @@ from robogest.motion.human_motion import HumanMotion
 from robogest.motion.skeleton import CANONICAL, CANONICAL_PELVIS_HEIGHT_M
 from robogest.speech.config import SpeechConfig
 from robogest.speech.types import Speech
+
+if TYPE_CHECKING:
+    from robogest.text import TextEncoder
 
 #: Bump when the meaning of cached arrays changes; part of every cache key.
 FEATURE_VERSION = 1
@@ -62,13 +65,15 @@ class FeatureConfig:
         return hashlib.sha1(blob.encode()).hexdigest()[:16]
 
 
-def text_encoder_for(config: FeatureConfig):  # -> TextEncoder
+def text_encoder_for(config: FeatureConfig) -> TextEncoder:
     from robogest.text import make_text_encoder
 
     return make_text_encoder(config.text_encoder, **config.text_encoder_kwargs)
 
 
-def speech_inputs(speech: Speech, config: FeatureConfig, encoder=None) -> tuple[np.ndarray, np.ndarray]:
+def speech_inputs(
+    speech: Speech, config: FeatureConfig, encoder: TextEncoder | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Per-frame acoustic/timing and text inputs of ``speech``.
 
     Parameters

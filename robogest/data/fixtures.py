@@ -33,7 +33,8 @@ _SR = 16000
 
 def _words(duration_s: float, rng: np.random.Generator) -> list[tuple[str, float, float]]:
     """``(word, start_s, end_s)``: phrases of 2-5 words separated by 0.6-1.0 s pauses."""
-    out, t = [], 0.3
+    out: list[tuple[str, float, float]] = []
+    t = 0.3
     while True:
         for _ in range(int(rng.integers(2, 6))):
             d = float(rng.uniform(0.2, 0.45))

@@ -9,8 +9,10 @@ import shutil
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from types import EllipsisType
 
 import numpy as np
+import numpy.typing as npt
 
 from robogest.data.datasets import Take
 from robogest.errors import InputError
@@ -72,7 +74,9 @@ def moments(chunks: Iterable[np.ndarray], min_std: float = MIN_STD) -> tuple[np.
     std : ndarray [shape=(d,)], float32
         Population standard deviation (``ddof=0``, as ``np.std``).
     """
-    n, mean, m2 = 0, None, None
+    n = 0
+    mean: np.ndarray | None = None  # (d,) of the rows so far
+    m2 = np.zeros(0)  # (d,) sum of squared deviations, set with mean
     for c in chunks:
         x = np.asarray(c, np.float64)  # (T_i, d)
         if x.shape[0] == 0:
@@ -117,13 +121,13 @@ class Normalization:
         return cls(a_mean.astype(np.float32), a_std, p_mean.astype(np.float32), p_std)
 
     def acoustic(self, x: np.ndarray) -> np.ndarray:
-        return ((x - self.acoustic_mean) / self.acoustic_std).astype(np.float32)
+        return np.asarray((x - self.acoustic_mean) / self.acoustic_std, dtype=np.float32)
 
     def pose(self, x: np.ndarray) -> np.ndarray:
-        return ((x - self.pose_mean) / self.pose_std).astype(np.float32)
+        return np.asarray((x - self.pose_mean) / self.pose_std, dtype=np.float32)
 
     def pose_inverse(self, x: np.ndarray) -> np.ndarray:
-        return (x * self.pose_std + self.pose_mean).astype(np.float32)
+        return np.asarray(x * self.pose_std + self.pose_mean, dtype=np.float32)
 
     def to_dict(self) -> dict[str, np.ndarray]:
         return {k: np.asarray(getattr(self, k)) for k in ("acoustic_mean", "acoustic_std", "pose_mean", "pose_std")}
@@ -135,7 +139,7 @@ class Normalization:
 
 def make_windows(
     takes: Sequence[Take], norm: Normalization, length: int, stride: int, store: str | os.PathLike | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[LazyWindows, LazyWindows, np.ndarray]:
     """Cut normalised takes into overlapping windows of ``length`` frames (read lazily, :func:`slice_windows`;
     ``store`` as there).
 
@@ -156,6 +160,10 @@ def make_windows(
     d_in = takes[0].acoustic.shape[1] + takes[0].text.shape[1] if takes else 0
     d_out = takes[0].poses.shape[1] if takes else 0
     return slice_windows(per_take, length, stride, d_in, d_out, store=store)
+
+
+#: An index into windows or into one window's axes: an int, a slice, or an index array.
+_Index = int | slice | np.ndarray | Sequence[int]
 
 
 class LazyWindows:
@@ -192,17 +200,22 @@ class LazyWindows:
     def __len__(self) -> int:
         return int(self.starts.shape[0])
 
-    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+    def __array__(self, dtype: npt.DTypeLike | None = None, copy: bool | None = None) -> np.ndarray:
         """All windows in memory (small sets, tests)."""
         out = self[:]
         return out if dtype is None else out.astype(dtype)
 
-    def __getitem__(self, index) -> np.ndarray:
-        index, rest = (index[0], index[1:]) if isinstance(index, tuple) else (index, ())
-        starts = self.starts[index]
+    def __getitem__(self, index: _Index | tuple[_Index, ...]) -> np.ndarray:
+        window, rest = (index[0], index[1:]) if isinstance(index, tuple) else (index, ())
+        starts = self.starts[window]
         rows = np.asarray(starts)[..., None] + np.arange(self.length)  # (..., length)
         out = np.asarray(self.frames[rows], np.float32).reshape(*np.shape(starts), *self.item_shape)
-        return out[(..., *rest)] if rest and np.ndim(starts) == 0 else out[(slice(None), *rest)] if rest else out
+        if not rest:
+            return out
+        lead: EllipsisType | slice = ... if np.ndim(starts) == 0 else slice(None)
+        key = (lead, *rest)  # the window axis, then the item axes
+        picked: np.ndarray = out[key]
+        return picked
 
 
 class _Spill:
@@ -262,14 +275,15 @@ def slice_windows(
         raise InputError("window length and stride must be >= 1")
     xshape = x_shape or (length, d_in)
     yshape = y_shape or (length, d_out)
-    if store is not None and Path(store).is_dir():
-        return _open_store(Path(store), length, d_in, d_out, xshape, yshape)
+    store_dir = None if store is None else Path(store)
+    if store_dir is not None and store_dir.is_dir():
+        return _open_store(store_dir, length, d_in, d_out, xshape, yshape)
     tmp = None
-    if store is not None:
+    if store_dir is not None:
         import tempfile
 
-        Path(store).parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{Path(store).name}.", dir=Path(store).parent))
+        store_dir.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{store_dir.name}.", dir=store_dir.parent))
     try:
         starts, idx = [], []
         fx, fy = _Spill(d_in, tmp and tmp / "x.f32"), _Spill(d_out, tmp and tmp / "y.f32")
@@ -283,21 +297,21 @@ def slice_windows(
                 idx.append(i)
             fx.append(x)
             fy.append(y)
-        s = np.asarray(starts, np.int64)
-        if tmp is not None:
+        window_starts = np.asarray(starts, np.int64)
+        if tmp is not None and store_dir is not None:
             fx.close()
             fy.close()
-            np.save(tmp / "starts.npy", s)
+            np.save(tmp / "starts.npy", window_starts)
             np.save(tmp / "take_index.npy", np.asarray(idx, np.int64))
             (tmp / "meta.json").write_text(json.dumps({"frames": fx.n, "length": length, "d": [d_in, d_out]}))
-            os.replace(tmp, store)  # complete, or (on any error above) absent
-            return _open_store(Path(store), length, d_in, d_out, xshape, yshape)
+            os.replace(tmp, store_dir)  # complete, or (on any error above) absent
+            return _open_store(store_dir, length, d_in, d_out, xshape, yshape)
     finally:
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
     return (
-        LazyWindows(fx.mapped(), s, length, xshape),
-        LazyWindows(fy.mapped(), s, length, yshape),
+        LazyWindows(fx.mapped(), window_starts, length, xshape),
+        LazyWindows(fy.mapped(), window_starts, length, yshape),
         np.asarray(idx, int),
     )
 

@@ -40,7 +40,7 @@ def _speed_curve(pos: np.ndarray, fps: float, joints: Sequence[int] | None, smoo
         raise InputError(f"motion beats need (T >= 3, J, D) positions, got shape {pos.shape}")
     if joints is not None:
         pos = pos[:, list(joints)]
-    speed = np.linalg.norm(np.gradient(pos, axis=0), axis=-1).mean(axis=1) * fps  # (T,), frame-aligned
+    speed: np.ndarray = np.linalg.norm(np.gradient(pos, axis=0), axis=-1).mean(axis=1) * fps  # (T,), frame-aligned
     if smooth_s > 0:
         speed = gaussian_filter1d(speed, smooth_s * fps, mode="nearest")
     return speed
@@ -82,7 +82,7 @@ def motion_beats(
     """
     v = _speed_curve(pos, fps, joints, smooth_s)
     idx, _ = find_peaks(-v, prominence=max(_prominence(v, rel_prominence), 1e-9))
-    return idx / fps
+    return np.asarray(idx, dtype=np.int64) / fps
 
 
 def pmb(motion_beats_s: np.ndarray, audio_beats_s: np.ndarray, delta_s: float = PMB_DELTA_S) -> float:

@@ -56,7 +56,8 @@ def derivative(pos: np.ndarray, fps: float, order: int) -> np.ndarray:
 
 def joint_speed(pos: np.ndarray, fps: float) -> np.ndarray:
     """Per-joint speed ``(T-1, J)`` in unit/s (Euclidean norm of the velocity)."""
-    return np.linalg.norm(derivative(pos, fps, 1), axis=-1)
+    speed: np.ndarray = np.linalg.norm(derivative(pos, fps, 1), axis=-1)
+    return speed
 
 
 def motion_statistics(pos: np.ndarray, fps: float, joint_names: Sequence[str] | None = None) -> dict:
@@ -121,7 +122,8 @@ def joint_set_positions(pos: np.ndarray, joint_names: Sequence[str], joint_set: 
         return None
     pos = np.asarray(pos, dtype=np.float64)
     rel = pos - pos[:, names.index(ROOT_JOINT)][:, None, :]
-    return rel[:, [names.index(j) for j in joint_set]]
+    picked: np.ndarray = rel[:, [names.index(j) for j in joint_set]]
+    return picked
 
 
 def paper_statistics(

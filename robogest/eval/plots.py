@@ -4,20 +4,27 @@ it works headless and in threads."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robogest.fileio import atomic_path
 
+if TYPE_CHECKING:
+    from matplotlib.artist import Artist
+    from matplotlib.figure import Figure
 
-def _save(fig, path: str | Path) -> Path:
+    from robogest.trajectory import Trajectory
+
+
+def _save(fig: Figure, path: str | Path) -> Path:
     """Write ``fig`` as PNG atomically (a full disk leaves no half-written plot)."""
     with atomic_path(path, ".png") as tmp:
         fig.savefig(tmp, dpi=100, format="png")
     return Path(path)
 
 
-def _figure(w: float = 7.0, h: float = 4.0):
+def _figure(w: float = 7.0, h: float = 4.0) -> Figure:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -54,7 +61,7 @@ def plot_pmb_curves(curves: dict[str, dict], path: str | Path, title: str = "") 
     return _save(fig, path)
 
 
-def plot_trajectory(traj, path: str | Path, title: str = "") -> Path:
+def plot_trajectory(traj: Trajectory, path: str | Path, title: str = "") -> Path:
     """Joint commands over time with position limits (dotted) and silent periods shaded; joints coloured by limb
     with a legend column per limb below the axes (the same key as ``--plot``), so that no legend covers the lines."""
     from matplotlib.lines import Line2D
@@ -76,11 +83,11 @@ def plot_trajectory(traj, path: str | Path, title: str = "") -> Path:
             t, 0, 1, where=traj.silent.astype(bool), color="grey", alpha=0.2, transform=ax.get_xaxis_transform()
         )
     ax.set(xlabel="time (s)", ylabel="angle (rad)", title=title)
-    columns: dict[str, list] = {"marks": [(Line2D([], [], color="0.3", ls=":", lw=0.7), "limits")]}
+    columns: dict[str, list[tuple[Artist, str]]] = {"marks": [(Line2D([], [], color="0.3", ls=":", lw=0.7), "limits")]}
     columns["marks"].append((Patch(color="grey", alpha=0.2), "silent"))
     for group, idx in joint_groups(traj.joint_names).items():
         columns[group] = [
             (Line2D([], [], color=styles[j].colour, ls=styles[j].line_style), traj.joint_names[j]) for j in idx
         ]
-    column_legend(fig, columns, loc="outside lower center", fontsize="small", frameon=False)
+    column_legend(fig, columns, fontsize="small", frameon=False)
     return _save(fig, path)

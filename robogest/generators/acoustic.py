@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import butter, find_peaks, sosfiltfilt
 
@@ -54,7 +55,8 @@ def band_loudness_db(audio: np.ndarray, sr: int) -> np.ndarray:
     a = np.pad(a, (win // 2, win // 2))
     n = 1 + (a.size - win) // hop
     frames = np.lib.stride_tricks.sliding_window_view(a, win)[::hop][:n]  # (F, win)
-    return 20.0 * np.log10(np.sqrt(np.mean(frames**2, axis=1)) + 1e-6)
+    power: npt.NDArray[np.float64] = np.mean(frames**2, axis=1)  # (F,)
+    return 20.0 * np.log10(np.sqrt(power) + 1e-6)
 
 
 def acoustic_beats(

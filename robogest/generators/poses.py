@@ -80,7 +80,8 @@ def _left_arm(d: np.ndarray, side: str) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 def _mirror(q: np.ndarray) -> np.ndarray:
     """Reflect rotations across the YZ plane (x -> -x): (w, x, y, z) -> (w, x, -y, -z)."""
-    return q * np.array([1.0, 1.0, -1.0, -1.0])
+    mirrored: np.ndarray = q * np.array([1.0, 1.0, -1.0, -1.0])
+    return mirrored
 
 
 def dofs_to_rotations(dofs: np.ndarray) -> np.ndarray:
@@ -112,7 +113,7 @@ def dofs_to_rotations(dofs: np.ndarray) -> np.ndarray:
         _axis_quat(_Z, -dofs[:, DOF["head_roll"]]),
     )
     for side in ("l", "r"):
-        parts = _left_arm(dofs, side)
+        parts: tuple[np.ndarray, ...] = _left_arm(dofs, side)
         if side == "r":
             parts = tuple(_mirror(p) for p in parts)
         for name, q in zip(("collar", "shoulder", "elbow", "wrist"), parts, strict=True):

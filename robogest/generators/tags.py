@@ -20,8 +20,13 @@ from robogest.errors import InputError
 #: A ``^gesture(NAME)`` tag (the original syntax).
 TAG = re.compile(r"\^gesture\(\s*([^)]*?)\s*\)")
 #: Anything that looks like a tag (well-formed or not), or an escape: ``^^``, ``\\``, ``^name(arg)``, ``^name``,
-#: ``^name(arg`` (unclosed), ``\name=value\``, ``\name\``, ``\name=value`` (unclosed).
-ANY_TAG = re.compile(r"\^\^|\\\\|\^[A-Za-z_]\w*(?:\(\s*[^()\s]*\s*\)?)?|\\[A-Za-z_]\w*(?:=[^\\\s]*)?\\?")
+#: ``^name(arg`` (unclosed), ``\name=value\``, ``\name\``, ``\name=value`` (unclosed); the name is group ``caret``
+#: or ``slash``.
+ANY_TAG = re.compile(
+    r"\^\^|\\\\"
+    r"|\^(?P<caret>[A-Za-z_]\w*)(?:\(\s*[^()\s]*\s*\)?)?"
+    r"|\\(?P<slash>[A-Za-z_]\w*)(?:=[^\\\s]*)?\\?"
+)
 _CARET = re.compile(r"\^([A-Za-z_]\w*)\(\s*([^()\s]*)\s*\)")
 _BACKSLASH = re.compile(r"\\([A-Za-z_]\w*)(?:=([^\\\s]*))?\\")
 _TOKEN = re.compile(r"[A-Za-z0-9\u00C0-\u024F']+")
@@ -64,7 +69,7 @@ def scan(text: str) -> list[Found]:
             out.append(Found(m.start(), m.end(), s, ""))
         elif s.startswith("^"):
             full = _CARET.fullmatch(s)
-            kind = re.match(r"\^(\w+)", s).group(1).lower()  # type: ignore[union-attr]
+            kind = m.group("caret").lower()
             if full:
                 prob = "" if full.group(2) else "it needs a name between the brackets, e.g. ^start(point_away)"
                 out.append(Found(m.start(), m.end(), kind, full.group(2), prob))
@@ -73,7 +78,7 @@ def scan(text: str) -> list[Found]:
                 out.append(Found(m.start(), m.end(), kind, "", f"it {how}"))
         else:
             full = _BACKSLASH.fullmatch(s)
-            kind = re.match(r"\\(\w+)", s).group(1).lower()  # type: ignore[union-attr]
+            kind = m.group("slash").lower()
             if full:
                 out.append(Found(m.start(), m.end(), kind, full.group(2) or ""))
             else:

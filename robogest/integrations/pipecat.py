@@ -27,6 +27,7 @@ import contextlib
 import logging
 import time
 from collections import deque
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -53,6 +54,8 @@ except ImportError as exc:  # the extra is not installed
     ) from None
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from robogest.live import Robot, UtteranceHandle
     from robogest.live.session import StreamUtterance
 
@@ -112,7 +115,7 @@ class RobotGestureProcessor(FrameProcessor):
         self._t0_ns = 0  # pipeline clock at the turn's first audio frame (word pts are on that clock)
         self._words: list[tuple[str, float, float]] = []  # words for the next feed
         self._last_word_s = 0.0
-        self._stream: Any = None  # the open StreamUtterance (worker side)
+        self._stream: StreamUtterance | None = None  # the open stream (worker side)
         self._stream_turn: Turn | None = None  # the turn it belongs to
         self._moving: UtteranceHandle | None = None  # the last stream's handle (worker side)
 
@@ -169,7 +172,7 @@ class RobotGestureProcessor(FrameProcessor):
         self._turn, self._words = None, []
         self._submit(self._w_interrupt)
 
-    def _submit(self, fn: Any, *args: Any) -> None:
+    def _submit(self, fn: Callable[..., None], *args: object) -> None:
         # RuntimeError: the pool was shut down (the pipeline ended): nothing more goes to the robot.
         with contextlib.suppress(RuntimeError):
             self._pool.submit(self._guarded, fn, self._gen, *args)
@@ -181,7 +184,7 @@ class RobotGestureProcessor(FrameProcessor):
         await super().cleanup()
 
     # --- the worker thread's side: robot calls, in frame order ----------------------------------------
-    def _guarded(self, fn: Any, gen: int, *args: Any) -> None:
+    def _guarded(self, fn: Callable[..., None], gen: int, *args: object) -> None:
         if gen != self._gen and fn is not self._w_interrupt:
             return  # queued before an interrupt: that turn is over
         try:
@@ -198,8 +201,9 @@ class RobotGestureProcessor(FrameProcessor):
     def _w_open(self, turn: Turn) -> None:
         if self._stream is not None:  # a turn that never closed (no stop frame came): its speech is complete
             self._stream.close()
-        self._stream, self._stream_turn = self.robot.stream(turn.sample_rate, self.lookahead_s), turn
-        turn.stream, self._moving = self._stream, self._stream.handle
+        stream = self.robot.stream(turn.sample_rate, self.lookahead_s)
+        self._stream, self._stream_turn = stream, turn
+        turn.stream, self._moving = stream, stream.handle
 
     def _w_feed(self, turn: Turn, audio: bytes, channels: int, words: list) -> None:
         st = self._stream
@@ -235,7 +239,7 @@ def _usable(words: list[tuple[str, float, float]]) -> list[tuple[str, float, flo
     return out
 
 
-def _mono_int16(audio: bytes, channels: int) -> Any:
+def _mono_int16(audio: bytes, channels: int) -> bytes | np.ndarray:
     """Pipecat's PCM (16-bit, interleaved) as the robot takes it: bytes when mono, else the channels' mean."""
     if channels <= 1:
         return audio
@@ -243,7 +247,8 @@ def _mono_int16(audio: bytes, channels: int) -> Any:
 
     a = np.frombuffer(audio, "<i2")
     a = a[: a.size - a.size % channels].reshape(-1, channels)
-    return a.mean(axis=1).astype(np.int16)
+    mono: np.ndarray = a.mean(axis=1).astype(np.int16)  # (N,)
+    return mono
 
 
 __all__ = ["RobotGestureProcessor", "Turn"]

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from robogest.integrations.pipecat import FrameDirection, FrameProcessor  # first: refuses a missing extra
 
@@ -29,6 +29,10 @@ from pipecat.frames.frames import (
     TTSTextFrame,
 )
 
+if TYPE_CHECKING:
+    from robogest.live import Robot
+    from robogest.speech.types import Speech
+
 
 class ScriptedTTS(FrameProcessor):
     """A TTS service stand-in: each ``TTSSpeakFrame`` is spoken (eSpeak NG), in ``chunk_s`` audio frames sent
@@ -42,7 +46,7 @@ class ScriptedTTS(FrameProcessor):
         self.chunk_s, self.speed, self.voice = float(chunk_s), float(speed), voice
         self.sent: list[Frame] = []
         self._speaking: asyncio.Task | None = None
-        self._cache: dict[str, Any] = {}
+        self._cache: dict[str, Speech] = {}
 
     async def process_frame(self, frame: Frame, direction: FrameDirection) -> None:
         await super().process_frame(frame, direction)
@@ -59,7 +63,7 @@ class ScriptedTTS(FrameProcessor):
             await self.cancel_task(self._speaking)
         self._speaking = None
 
-    async def speech(self, text: str) -> Any:
+    async def speech(self, text: str) -> Speech:
         """The :class:`~robogest.speech.Speech` of ``text`` (synthesised off the event loop, then cached)."""
         if text not in self._cache:
             from robogest.speech import synthesize
@@ -122,7 +126,7 @@ class LocalPipeline:
             await p.say("Hello there!")  # returns when the TTS has sent the last audio frame
     """
 
-    def __init__(self, robot: Any, *, speed: float = 1.0, **processor_options: Any):
+    def __init__(self, robot: Robot, *, speed: float = 1.0, **processor_options: Any):
         from robogest.integrations.pipecat import RobotGestureProcessor
 
         self.tts = ScriptedTTS(speed=speed)

@@ -60,7 +60,7 @@ class TextEncoder(ABC):
         independent of the training set, so a checkpoint needs no extra state to reproduce it.
         """
         vecs = np.stack([self.encode_words([w])[0] for w in sorted(FILLER_WORDS)])  # (F, dim)
-        return vecs.mean(axis=0).astype(np.float32)
+        return np.asarray(vecs.mean(axis=0), dtype=np.float32)
 
     def frame_features(self, words: Sequence[Word], n_frames: int, fps: float) -> np.ndarray:
         """Per-frame text features, Gesticulator §3.2 / Fig. 2.
@@ -185,7 +185,7 @@ class MiniLMEncoder(TextEncoder):
         missing = counts == 0  # words the tokenizer dropped (e.g. truncated): encode them alone
         out[~missing] /= counts[~missing, None]
         for i in np.flatnonzero(missing):
-            out[i] = self.encode_words([words[i]])[0] if len(words) > 1 else 0.0
+            out[i] = self.encode_words([words[int(i)]])[0] if len(words) > 1 else 0.0
         return out
 
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from matplotlib.artist import Artist
     from matplotlib.figure import Figure
     from matplotlib.legend import Legend
 
@@ -80,31 +81,38 @@ def joint_styles(joint_names: list[str], robot: RobotConfig | None = None) -> li
     shades of the colour once the four line styles are used up (a humanoid leg has six joints)."""
     from matplotlib.colors import to_rgb
 
-    styles: list[JointStyle | None] = [None] * len(joint_names)
+    styles: dict[int, JointStyle] = {}  # every joint is in a group ("other" at least)
     for group, idx in joint_groups(joint_names, robot).items():
-        base = to_rgb(GROUP_COLOURS[group])
+        r, g, b = to_rgb(GROUP_COLOURS[group])
         for k, j in enumerate(idx):
             shade = (k // len(_LINE_STYLES)) % 3  # 0: the colour, 1: darker, 2: lighter
             mix, towards = ((0.0, 0.0), (0.4, 0.0), (0.45, 1.0))[shade]
-            colour = tuple(c + (towards - c) * mix for c in base)
-            styles[j] = JointStyle(group, colour, _LINE_STYLES[k % len(_LINE_STYLES)])  # type: ignore[arg-type]
-    return styles  # type: ignore[return-value]
+            colour = (r + (towards - r) * mix, g + (towards - g) * mix, b + (towards - b) * mix)
+            styles[j] = JointStyle(group, colour, _LINE_STYLES[k % len(_LINE_STYLES)])
+    return [styles[j] for j in range(len(joint_names))]
 
 
-def column_legend(fig: Figure, columns: dict[str, list[tuple[object, str]]], **kwargs) -> Legend:
-    """A figure legend with one column per key of ``columns`` (``header -> [(handle, label)]``), the header in bold
-    on top: entries are padded with blanks so that no group runs on into the next column."""
+def column_legend(
+    fig: Figure, columns: dict[str, list[tuple[Artist, str]]], *, fontsize: float | str, frameon: bool
+) -> Legend:
+    """A figure legend below the axes with one column per key of ``columns`` (``header -> [(handle, label)]``),
+    the header in bold on top: entries are padded with blanks so that no group runs on into the next column;
+    ``fontsize`` and ``frameon`` as for ``Figure.legend``."""
     from matplotlib.lines import Line2D
 
     height = 1 + max(len(v) for v in columns.values())
-    handles, labels, headers = [], [], set()
+    handles: list[Artist] = []
+    labels: list[str] = []
+    headers: set[int] = set()
     for header, entries in columns.items():
         headers.add(len(labels))
         blank = [(Line2D([], [], linestyle="none"), "")] * (height - 1 - len(entries))
         for h, label in [(Line2D([], [], linestyle="none"), header), *entries, *blank]:
             handles.append(h)
             labels.append(label)
-    legend = fig.legend(handles, labels, ncols=len(columns), **kwargs)
+    legend = fig.legend(
+        handles, labels, ncols=len(columns), loc="outside lower center", fontsize=fontsize, frameon=frameon
+    )
     for i, text in enumerate(legend.get_texts()):
         if i in headers:
             text.set_fontweight("bold")

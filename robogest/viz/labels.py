@@ -8,12 +8,13 @@ an axes; one that would touch a placed label, or stick out of the axes, tries th
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.backend_bases import RendererBase
     from matplotlib.text import Text
+    from matplotlib.transforms import Bbox
 
 #: Gap kept between two labels, and between a label and the axes' edge, pixels.
 PAD_PX = 2.0
@@ -54,12 +55,22 @@ def place_labels(
     return texts
 
 
-def _fit(ax, t, label: Label, renderer, box, placed: list, lanes: int, line_px: float) -> bool:
+def _fit(
+    ax: Axes,
+    t: Text,
+    label: Label,
+    renderer: RendererBase,
+    box: Bbox,
+    placed: list[tuple[int, float, float]],
+    lanes: int,
+    line_px: float,
+) -> bool:
     """Move ``t`` to the first lane and alignment where it overlaps nothing placed; False when there is none."""
     for lane in range(lanes):
         y_frac = 1.0 - (PAD_PX + lane * line_px) / box.height  # x in data (s), y in axes fraction
-        for x_s, ha in ((label.start_s, "left"), (label.end_s, "right")):
-            t.set_ha(ha)
+        aligns: tuple[tuple[float, Literal["left", "right"]], ...] = ((label.start_s, "left"), (label.end_s, "right"))
+        for x_s, ha in aligns:
+            t.set_horizontalalignment(ha)
             t.set_position((x_s, y_frac))
             ext = t.get_window_extent(renderer)
             if ext.x0 < box.x0 + PAD_PX or ext.x1 > box.x1 - PAD_PX:

@@ -19,11 +19,13 @@ from robogest.fileio import atomic_path
 from robogest.motion.human_motion import HumanMotion
 from robogest.speech.types import Speech
 from robogest.trajectory import Trajectory
-from robogest.viz.joints import column_legend, joint_groups, joint_styles
+from robogest.viz.joints import JointStyle, column_legend, joint_groups, joint_styles
 from robogest.viz.labels import Label, place_labels
 
 if TYPE_CHECKING:
+    from matplotlib.artist import Artist
     from matplotlib.axes import Axes
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     from robogest.robot.config import RobotConfig
@@ -80,7 +82,7 @@ def motion_figure(
     ends.append(float(trajectory.t_s[-1]) if trajectory is not None and trajectory.n_frames else 0.0)
     spans = row_spans(max(ends))
     panels = ["audio"] * (speech is not None) + ["height", "speed"] + ["joints"] * (trajectory is not None)
-    fig, rows = _layout(spans, panels)
+    fig, canvas, rows = _layout(spans, panels)
     pos = motion.positions()  # (T, J, 3) metres
     wrists = []
     for side, _label, colour in _WRISTS:
@@ -105,7 +107,7 @@ def motion_figure(
     if speech is not None and speech.words:
         fig.draw_without_rendering()  # runs the layout: labels are measured in pixels
         fig.set_layout_engine("none")  # and keeps it: once is slow enough with 30 axes
-        renderer = fig.canvas.get_renderer()
+        renderer = canvas.get_renderer()
         shown = sum(
             len(place_labels(axes["audio"], _labels(speech, t0, t1), renderer))
             for (t0, t1), axes in zip(spans, rows, strict=True)
@@ -114,8 +116,11 @@ def motion_figure(
     return fig
 
 
-def _layout(spans: list[tuple[float, float]], panels: list[str]) -> tuple[Figure, list[dict[str, Axes]]]:
-    """The figure and each row's axes by panel name; rows share the y scale of each panel, a row its x axis."""
+def _layout(
+    spans: list[tuple[float, float]], panels: list[str]
+) -> tuple[Figure, FigureCanvasAgg, list[dict[str, Axes]]]:
+    """The figure, its Agg canvas and each row's axes by panel name; rows share the y scale of each panel, a row
+    its x axis."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -123,7 +128,7 @@ def _layout(spans: list[tuple[float, float]], panels: list[str]) -> tuple[Figure
     for k in range(len(spans)):
         ratios += [_ROW_GAP_IN] * (k > 0) + [_PANEL_IN[p] for p in panels]
     fig = Figure(figsize=(_WIDTH_IN, sum(ratios) + 1.6), dpi=DPI, layout="constrained")
-    FigureCanvasAgg(fig)
+    canvas = FigureCanvasAgg(fig)
     grid = fig.add_gridspec(len(ratios), 1, height_ratios=ratios)
     first: dict[str, Axes] = {}
     rows: list[dict[str, Axes]] = []
@@ -143,7 +148,7 @@ def _layout(spans: list[tuple[float, float]], panels: list[str]) -> tuple[Figure
         row[panels[0]].set_xlim(t0, t1)
         rows.append(row)
     rows[-1][panels[-1]].set_xlabel("time (s)", fontsize=8)
-    return fig, rows
+    return fig, canvas, rows
 
 
 _YLABEL = {"audio": "words", "height": "height (m)", "speed": "speed (cm/s)", "joints": "joints (deg)"}
@@ -177,7 +182,7 @@ def _draw_wrists(a_h: Axes, a_v: Axes, motion: HumanMotion, wrists: list, t0: fl
         a_v.plot(t[w], speed[w], color=colour, lw=0.9)
 
 
-def _draw_joints(a: Axes, traj: Trajectory, styles: list, t0: float, t1: float) -> None:
+def _draw_joints(a: Axes, traj: Trajectory, styles: list[JointStyle], t0: float, t1: float) -> None:
     w = _window(traj.t_s, t0, t1)
     q_deg = np.degrees(traj.q_rad[w])
     for j, s in enumerate(styles):
@@ -209,12 +214,16 @@ def _labels(speech: Speech, t0: float, t1: float) -> list[Label]:
     return out
 
 
-def _legend(fig: Figure, traj: Trajectory | None, styles: list, robot: RobotConfig | None, marks: bool) -> None:
+def _legend(
+    fig: Figure, traj: Trajectory | None, styles: list[JointStyle], robot: RobotConfig | None, marks: bool
+) -> None:
     """One key below the rows: wrists, beat marks, and a column of joints per limb."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    columns: dict[str, list] = {"wrists": [(Line2D([], [], color=c), label) for _, label, c in _WRISTS]}
+    columns: dict[str, list[tuple[Artist, str]]] = {
+        "wrists": [(Line2D([], [], color=c), label) for _, label, c in _WRISTS]
+    }
     if marks:
         columns["marks"] = [
             (Line2D([], [], color=_BEAT), "beat"),
@@ -226,7 +235,7 @@ def _legend(fig: Figure, traj: Trajectory | None, styles: list, robot: RobotConf
             columns[group] = [
                 (Line2D([], [], color=styles[j].colour, ls=styles[j].line_style), traj.joint_names[j]) for j in idx
             ]
-    column_legend(fig, columns, loc="outside lower center", fontsize=7, frameon=False)
+    column_legend(fig, columns, fontsize=7, frameon=False)
 
 
 def _title(duration_s: float, spans: list, n_words: int, shown: int) -> str:

@@ -675,3 +675,17 @@ def test_speak_video_on_a_full_disk_is_one_line_not_a_crash(tmp_path):
         assert sorted(p.name for p in (tmp_path / "full").iterdir()) == ["filler"]
     finally:
         subprocess.run(["umount", "-l", str(tmp_path / "full")], check=False)
+
+
+def test_a_map_file_that_is_not_a_mapping_is_one_line(tmp_path: Path, capsys) -> None:
+    """``robots import --map`` with a YAML list: the message names the file, what it holds and what to write."""
+    from tests.robots.humanoids import Options, write_urdf
+
+    desc = write_urdf(tmp_path, Options(arm_dof=3))
+    m = tmp_path / "map.yaml"
+    m.write_text("- head\n- neck_pitch\n")
+    assert main(["robots", "import", str(desc), "--out", str(tmp_path / "robots" / "m.yaml"), "--map", str(m)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"robogest: error: --map {m}: a list, not a mapping; write arms/head/hold/forward as in the "
+                   "import: section of an imported robot"]  # fmt: skip
+    assert not (tmp_path / "robots").exists()

@@ -21,15 +21,20 @@ Torch is imported only when an evaluator is loaded.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robogest.errors import InputError
 from robogest.eval.features import frechet_distance
 from robogest.eval.fgd.topology import FPS, INPUT_DIM, N_JOINTS, TIME_DOWNSAMPLING, WINDOW
+
+if TYPE_CHECKING:
+    import torch
+
+    from robogest.eval.fgd.network import MotionAutoencoder
 
 #: File name of the published evaluator weights.
 WEIGHTS_FILE = "AESKConv_240_100.bin"
@@ -56,8 +61,11 @@ def axis_angle_to_rot6d(poses: np.ndarray) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     t = poses.shape[0]
-    mats = Rotation.from_rotvec(np.asarray(poses, dtype=np.float64).reshape(-1, 3)).as_matrix()  # (T*55, 3, 3)
-    return mats[:, :2, :].reshape(t, N_JOINTS * 6)
+    mats: np.ndarray = Rotation.from_rotvec(
+        np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    ).as_matrix()  # (T*55, 3, 3)
+    rot6d: np.ndarray = mats[:, :2, :].reshape(t, N_JOINTS * 6)
+    return rot6d
 
 
 def check_poses(poses: np.ndarray, name: str = "poses", fps: float = FPS) -> np.ndarray:
@@ -79,7 +87,7 @@ def check_poses(poses: np.ndarray, name: str = "poses", fps: float = FPS) -> np.
 class FGDEvaluator:
     """A loaded evaluator network; see :func:`load_evaluator`."""
 
-    def __init__(self, model: Any, device: str = "cpu") -> None:
+    def __init__(self, model: MotionAutoencoder, device: str = "cpu") -> None:
         self.model = model
         self.device = device
 
@@ -116,7 +124,8 @@ class FGDEvaluator:
     def _pooled(self, takes: np.ndarray | Sequence[np.ndarray], side: str) -> np.ndarray:
         if isinstance(takes, np.ndarray) and takes.ndim == 2:
             takes = [takes]
-        return np.concatenate([self.features(t, f"{side} take {i}") for i, t in enumerate(takes)], axis=0)
+        pooled: np.ndarray = np.concatenate([self.features(t, f"{side} take {i}") for i, t in enumerate(takes)], axis=0)
+        return pooled
 
 
 def _describe(keys: Sequence[str], limit: int = 4) -> str:
@@ -124,7 +133,9 @@ def _describe(keys: Sequence[str], limit: int = 4) -> str:
     return ", ".join(keys[:limit]) + more
 
 
-def check_state_dict(state: dict, expected: dict, path: str | os.PathLike) -> None:
+def check_state_dict(
+    state: Mapping[str, torch.Tensor], expected: Mapping[str, torch.Tensor], path: str | os.PathLike
+) -> None:
     """Refuse a state dict that is not the evaluator's: missing or unexpected keys, other shapes, or skeleton
     masks/pooling matrices that differ from those derived from the SMPL-X tree. One :class:`InputError` lists
     what differs and says where to get the right file."""

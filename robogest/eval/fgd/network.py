@@ -35,6 +35,8 @@ class SkeletonConv(nn.Module):
     Input and output ``[shape=(B, C, T)]``, channels grouped per edge.
     """
 
+    mask: torch.Tensor  # buffer (C_out, C_in, kernel), {0, 1}
+
     def __init__(self, layer: LayerPlan, kernel: int, stride: int, padding: int) -> None:
         super().__init__()
         mask = torch.from_numpy(conv_mask(layer, kernel))
@@ -51,6 +53,8 @@ class SkeletonConv(nn.Module):
 
 class SkeletonPool(nn.Module):
     """Averages groups of edges (a fixed matrix, stored in the state dict as ``weight``)."""
+
+    weight: torch.Tensor  # buffer (C_pooled, C_in)
 
     def __init__(self, layer: LayerPlan) -> None:
         super().__init__()
@@ -75,7 +79,8 @@ class SkeletonResidual(nn.Module):
         self.common = nn.Sequential(*([SkeletonPool(layer)] if layer.pools else []), nn.Tanh())
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.common(self.residual(x) + self.shortcut(x))
+        y: torch.Tensor = self.common(self.residual(x) + self.shortcut(x))
+        return y
 
 
 class SkeletonEncoder(nn.Module):
@@ -88,7 +93,7 @@ class SkeletonEncoder(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         y = x.permute(0, 2, 1)
         for layer in self.layers:
-            y = layer(y)
+            y = layer(y)  # (B, C, T) with C and T of that layer
         return y.permute(0, 2, 1)
 
 
@@ -102,7 +107,8 @@ class _ResBlock(nn.Module):
         )
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return x + self.model(x)
+        y: torch.Tensor = self.model(x)
+        return x + y
 
 
 class ConvDecoder(nn.Module):
@@ -119,7 +125,8 @@ class ConvDecoder(nn.Module):
         self.main = nn.Sequential(*layers)
 
     def forward(self, z: torch.Tensor) -> torch.Tensor:
-        return self.main(z.permute(0, 2, 1)).permute(0, 2, 1)
+        y: torch.Tensor = self.main(z.permute(0, 2, 1))
+        return y.permute(0, 2, 1)
 
 
 class MotionAutoencoder(nn.Module):
@@ -134,7 +141,9 @@ class MotionAutoencoder(nn.Module):
 
     def encode(self, rot6d: torch.Tensor) -> torch.Tensor:
         """``[shape=(B, T, 330)]`` (T a multiple of 16) -> ``[shape=(B, T / 16, 240)]`` latent features."""
-        return self.encoder(rot6d)
+        z: torch.Tensor = self.encoder(rot6d)
+        return z
 
     def forward(self, rot6d: torch.Tensor) -> torch.Tensor:
-        return self.decoder(self.encoder(rot6d))
+        y: torch.Tensor = self.decoder(self.encoder(rot6d))
+        return y

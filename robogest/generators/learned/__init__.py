@@ -10,38 +10,42 @@ packages do.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from robogest.errors import InputError
 
+if TYPE_CHECKING:
+    from robogest.learn.trainer import ModelSpec, TrainConfig
 
-def _gesticulator() -> Any:
+
+def _gesticulator() -> ModelSpec:
     from robogest.generators.learned.gesticulator import SPEC
 
     return SPEC
 
 
-def _rhythmic() -> Any:
+def _rhythmic() -> ModelSpec:
     from robogest.generators.learned.rhythmic import SPEC
 
     return SPEC
 
 
-def _s2ag() -> Any:
+def _s2ag() -> ModelSpec:
     from robogest.generators.learned.s2ag import SPEC
 
     return SPEC
 
 
 #: Model name (``robogest train --model``) -> loader of its trainer spec (imports torch when called).
-MODEL_SPECS: dict[str, Callable[[], Any]] = {"gesticulator": _gesticulator, "rhythmic": _rhythmic, "s2ag": _s2ag}
+MODEL_SPECS: dict[str, Callable[[], ModelSpec]] = {"gesticulator": _gesticulator, "rhythmic": _rhythmic, "s2ag": _s2ag}
 
 
 def model_names() -> list[str]:
     return sorted(MODEL_SPECS)
 
 
-def get_model_spec(name: str) -> Any:
+def get_model_spec(name: str) -> ModelSpec:
     """The trainer spec registered as ``name``.
 
     Raises
@@ -54,7 +58,7 @@ def get_model_spec(name: str) -> Any:
     return MODEL_SPECS[name]()
 
 
-def train_model(cfg: Any, log: Callable[[str], None] | None = None) -> Any:
+def train_model(cfg: TrainConfig, log: Callable[[str], None] | None = None) -> Path:
     """:func:`robogest.learn.trainer.train` with the spec of ``cfg.model``; returns the best checkpoint's path."""
     from robogest.learn.trainer import train
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
 
 import numpy as np
 
@@ -18,6 +18,11 @@ from robogest.generators.base import Generator
 from robogest.learn import require_torch
 from robogest.learn.checkpoint import build_model, load_checkpoint, normalization_arrays
 from robogest.speech.types import Speech
+
+if TYPE_CHECKING:
+    from robogest.text import TextEncoder
+
+_G = TypeVar("_G", bound="CheckpointGenerator")
 
 
 class CheckpointGenerator(Generator):
@@ -36,11 +41,16 @@ class CheckpointGenerator(Generator):
         Overrides the text encoder the checkpoint names (must have the same dimension).
     """
 
+    # Any: each model family has its own config dataclass and network, which its subclass uses by their fields.
     config_cls: ClassVar[Any]
     net_cls: ClassVar[Any]
 
     def __init__(
-        self, checkpoint: str | os.PathLike | None = None, device: str = "cpu", encoder: Any = None, **options: Any
+        self,
+        checkpoint: str | os.PathLike | None = None,
+        device: str = "cpu",
+        encoder: TextEncoder | None = None,
+        **options: Any,
     ) -> None:
         require_torch(f"the {self.name!r} generator")
         if checkpoint is None:
@@ -73,8 +83,13 @@ class CheckpointGenerator(Generator):
 
     @classmethod
     def from_model(
-        cls, model: Any, features: FeatureConfig, norm: Normalization | None = None, encoder: Any = None, **options: Any
-    ):
+        cls: type[_G],
+        model: Any,
+        features: FeatureConfig,
+        norm: Normalization | None = None,
+        encoder: TextEncoder | None = None,
+        **options: Any,
+    ) -> _G:
         """Wrap an in-memory model (tests, notebooks) without a checkpoint file."""
         self = cls.__new__(cls)
         self.path = None
@@ -82,9 +97,14 @@ class CheckpointGenerator(Generator):
         return self
 
     def _adopt(
-        self, model: Any, features: FeatureConfig, norm: Normalization | None, encoder: Any, options: dict[str, Any]
+        self,
+        model: Any,
+        features: FeatureConfig,
+        norm: Normalization | None,
+        encoder: TextEncoder | None,
+        options: dict[str, Any],
     ) -> None:
-        self.config, self.features, self.norm = model.config, features, norm
+        self.config, self.features, self._norm = model.config, features, norm
         self.device = next(model.parameters()).device
         self.model = model.eval()
         self._encoder = encoder
@@ -102,7 +122,17 @@ class CheckpointGenerator(Generator):
             raise InputError(f"the {self.name} generator has no option(s) {', '.join(sorted(options))}")
 
     @property
-    def encoder(self) -> Any:
+    def norm(self) -> Normalization:
+        """The training data's statistics (a model wrapped by :meth:`from_model` without ``norm`` has none)."""
+        if self._norm is None:
+            raise InputError(
+                f"{self.path or 'the model'}: no normalisation statistics; "
+                f"pass norm= to {type(self).__name__}.from_model"
+            )
+        return self._norm
+
+    @property
+    def encoder(self) -> TextEncoder:
         if self._encoder is None:
             self._encoder = text_encoder_for(self.features)
         if self._encoder.dim != self.config.n_text:

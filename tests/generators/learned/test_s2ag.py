@@ -307,6 +307,21 @@ def test_overfits_a_training_take(trained, two_speakers):
     assert err < 0.4 * spread, (err, spread)
 
 
+def test_an_unknown_option_or_a_missing_normalisation_is_one_line(trained):
+    """An option S2AG does not take is refused as the base generator refuses it (not a TypeError from Python), and
+    a model wrapped without statistics says so where they are read."""
+    from robogest.errors import InputError
+
+    _, best = trained
+    with pytest.raises(InputError, match=r"the s2ag generator has no option\(s\) speed"):
+        S.S2AGGenerator(checkpoint=best, speed=2.0)
+    gen = S.S2AGGenerator(checkpoint=best)
+    assert gen.norm.pose_mean.ndim == 1  # the checkpoint's statistics
+    bare = S.S2AGGenerator.from_model(gen.model, gen.features)
+    with pytest.raises(InputError, match=r"no normalisation statistics; pass norm= to S2AGGenerator\.from_model"):
+        _ = bare.norm
+
+
 def test_sampled_speaker_styles_differ(trained, two_speakers):
     cfg, best = trained
     files, _ = _take(two_speakers, Path(cfg.cache_dir), "2_take_001")

@@ -6,6 +6,7 @@ import math
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from robogest.data.features import speech_inputs
 from robogest.errors import InputError
@@ -38,29 +39,33 @@ class S2AGGenerator(CheckpointGenerator):
 
     config_cls = S2AGConfig
     net_cls = S2AGNet
+    model: S2AGNet  # the base keeps whichever family's network and config it loaded: here these
+    config: S2AGConfig
 
-    def configure(self, speaker: Any = None) -> None:
-        """Check the model's data statistics and set the style ``speaker`` (see the class)."""
+    def configure(self, speaker: npt.ArrayLike | None = None, **options: Any) -> None:
+        """Check the model's data statistics and set the style ``speaker`` (see the class); any other option is
+        refused (:meth:`CheckpointGenerator.configure`)."""
+        super().configure(**options)
         if not self.config.mfcc_mean or not self.config.dir_mean:
             raise InputError("the s2ag model config has no data statistics (it was never fitted to a dataset)")
         self.speaker = speaker
         self.style_vector(speaker, 0)  # validate now, not at the first generate
 
-    def style_vector(self, speaker: Any = None, seed: int = 0) -> np.ndarray:
+    def style_vector(self, speaker: npt.ArrayLike | None = None, seed: int = 0) -> np.ndarray:
         """The style ``z`` ``(D_s,)`` that ``speaker`` (see the class) stands for."""
         c = self.config
         if isinstance(speaker, str) and speaker == "sample":
             g = torch.Generator().manual_seed(int(seed))
-            return torch.randn(c.d_style, generator=g).numpy()
+            return np.asarray(torch.randn(c.d_style, generator=g).numpy())
         with torch.inference_mode():
             if speaker is None:
                 mu, _ = self.model.generator.style(torch.arange(c.n_speakers, device=self.device))  # (S, D_s)
-                return mu.mean(0).cpu().numpy()
+                return np.asarray(mu.mean(0).cpu().numpy())
             if isinstance(speaker, (int, np.integer)) and not isinstance(speaker, bool):
                 if not 0 <= int(speaker) < c.n_speakers:
                     raise InputError(f"speaker {speaker} out of range: the model knows {c.n_speakers} ({c.speakers})")
                 mu, _ = self.model.generator.style(torch.tensor([int(speaker)], device=self.device))
-                return mu[0].cpu().numpy()
+                return np.asarray(mu[0].cpu().numpy())
         z = np.asarray(speaker, dtype=np.float32)
         if z.shape != (c.d_style,):
             raise InputError(f"speaker must be None, an int, 'sample' or a {c.d_style}-vector, got {speaker!r}")
@@ -95,7 +100,7 @@ class S2AGGenerator(CheckpointGenerator):
             out = self.model.generator.rollout(x_m, x_t, zt)[0]  # (total, 27)
         y = out[:n].cpu().numpy() + np.asarray(c.dir_mean, np.float32)  # (n, 27)
         y = y.reshape(n, N_EDGES, 3)  # (n, 27) -> (n, 9, 3)
-        return (y / np.maximum(np.linalg.norm(y, axis=-1, keepdims=True), 1e-9)).astype(np.float32)
+        return np.asarray(y / np.maximum(np.linalg.norm(y, axis=-1, keepdims=True), 1e-9), dtype=np.float32)
 
     def generate(self, speech: Speech, seed: int = 0) -> HumanMotion:
         """Motion at ``speech.fps`` lasting as long as the speech; ``seed`` only matters for ``speaker="sample"``."""

@@ -26,17 +26,24 @@ T"). Inference runs window after window, seeding each with the last ``n_seed`` g
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from robogest.learn import require_torch
 
-torch = require_torch("the 's2ag' generator")
-nn = torch.nn
-F = torch.nn.functional
+if TYPE_CHECKING:  # the checker sees torch's own types; at run time a missing torch is one clear error
+    import torch
+    from torch import nn
+    from torch.nn import functional as F
+else:
+    torch = require_torch("the 's2ag' generator")
+    nn = torch.nn
+    F = torch.nn.functional
 
-from robogest.errors import InputError  # noqa: E402
-from robogest.generators.learned.s2ag.config import S2AGConfig  # noqa: E402
-from robogest.generators.learned.s2ag.skeleton import (  # noqa: E402
+from robogest.errors import InputError
+from robogest.generators.learned.s2ag.config import S2AGConfig
+from robogest.generators.learned.s2ag.skeleton import (
     BODY_PARTS,
     N_EDGES,
     TEMPORAL_REACH,
@@ -44,9 +51,15 @@ from robogest.generators.learned.s2ag.skeleton import (  # noqa: E402
     part_adjacency,
 )
 
+#: What the generator returns: edge vectors ``(B, T, 27)``, style ``z`` and its ``mu``, ``logvar`` ``(B, D_s)``
+#: (the last two None without a speaker).
+GeneratorOutput = tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, torch.Tensor | None]
+
 
 class STGCNBlock(nn.Module):
     """Spatial graph convolution over a fixed adjacency, then a temporal convolution over ±2 frames (ST-GCN)."""
+
+    adjacency: torch.Tensor  # buffer (V, V)
 
     def __init__(self, c_in: int, c_out: int, adjacency: np.ndarray) -> None:
         super().__init__()
@@ -59,14 +72,17 @@ class STGCNBlock(nn.Module):
         self.residual = nn.Identity() if c_in == c_out else nn.Conv2d(c_in, c_out, 1)
         self.act = nn.LeakyReLU(0.2)
 
-    def forward(self, x):
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``(B, C_in, T, V)`` -> ``(B, C_out, T, V)``."""
         y = torch.einsum("bctv,vw->bctw", self.spatial(x), self.adjacency)  # mix neighbouring vertices
-        return self.act(self.temporal(self.act(y)) + self.residual(x))
+        out: torch.Tensor = self.act(self.temporal(self.act(y)) + self.residual(x))
+        return out
 
 
 class AffectiveEncoder(nn.Module):
     """§3.1.4: STGCN over the 9 edges, STGCN over the 3 body parts, 1-D convolutions -> ``(B, T, D_a)``."""
+
+    part_order: torch.Tensor  # buffer (9,): edge indices grouped by body part
 
     def __init__(self, c_in: int, c: S2AGConfig) -> None:
         super().__init__()
@@ -78,15 +94,16 @@ class AffectiveEncoder(nn.Module):
         )
         self.register_buffer("part_order", torch.tensor([e for part in BODY_PARTS for e in part]))
 
-    def forward(self, x):
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``x`` ``(B, T, 9, C_in)`` -> ``(B, T, D_a)``."""
         b, t = x.shape[:2]
-        h = self.level1(x.permute(0, 3, 1, 2))  # (B, T, 9, C) -> (B, C, T, 9) -> (B, D_a1, T, 9)
+        h: torch.Tensor = self.level1(x.permute(0, 3, 1, 2))  # (B, T, 9, C) -> (B, C, T, 9) -> (B, D_a1, T, 9)
         h = h[..., self.part_order].reshape(b, -1, t, 3, 3)  # (B, D_a1, T, part, edge-in-part)
         h = h.permute(0, 1, 4, 2, 3).reshape(b, -1, t, 3)  # (B, D_a1 * 3, T, part): part edges as features
         h = self.level2(h)  # (B, D_a2, T, 3)
         h = h.permute(0, 1, 3, 2).reshape(b, -1, t)  # (B, D_a2 * 3, T)
-        return self.conv(h).transpose(1, 2)  # (B, D_a, T) -> (B, T, D_a)
+        out: torch.Tensor = self.conv(h)  # (B, D_a, T)
+        return out.transpose(1, 2)  # (B, T, D_a)
 
 
 class S2AGGeneratorNet(nn.Module):
@@ -120,12 +137,21 @@ class S2AGGeneratorNet(nn.Module):
             nn.Linear(c.d_gen, c.d_gen // 2), nn.LeakyReLU(0.2), nn.Linear(c.d_gen // 2, 3 * N_EDGES)
         )
 
-    def style(self, speaker):
+    def style(self, speaker: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Speaker indices ``(B,)`` -> ``(mu, logvar)`` of the style distribution, ``(B, D_s)`` each (eq. 3-4)."""
         h = self.speaker_fc(F.one_hot(speaker, self.config.n_speakers).float())  # (B, S) -> (B, D_s)
-        return self.style_mu(h), self.style_logvar(h)
+        mu: torch.Tensor = self.style_mu(h)
+        logvar: torch.Tensor = self.style_logvar(h)
+        return mu, logvar
 
-    def forward(self, mfcc, text, seed, speaker=None, z=None):
+    def forward(
+        self,
+        mfcc: torch.Tensor,
+        text: torch.Tensor,
+        seed: torch.Tensor,
+        speaker: torch.Tensor | None = None,
+        z: torch.Tensor | None = None,
+    ) -> GeneratorOutput:
         """Edge vectors of one window.
 
         Parameters
@@ -148,11 +174,12 @@ class S2AGGeneratorNet(nn.Module):
         """
         c = self.config
         b, t = mfcc.shape[:2]
-        mu = logvar = None
+        mu: torch.Tensor | None = None
+        logvar: torch.Tensor | None = None
         if speaker is not None:
             mu, logvar = self.style(speaker)
         if z is None:
-            if mu is None:
+            if mu is None or logvar is None:
                 z = mfcc.new_zeros(b, c.d_style)
             elif self.training:
                 z = mu + torch.randn_like(mu) * (0.5 * logvar).exp()  # reparameterisation trick
@@ -167,9 +194,10 @@ class S2AGGeneratorNet(nn.Module):
         fa = self.affective(torch.cat([s, known], dim=-1))  # (B, T, 9, 4) -> (B, T, D_a)
         h, _ = self.gru(torch.cat([fm, fx, fs, fa], dim=-1))  # (B, T, 2 * D_e)
         h = h[..., : c.d_gen] + h[..., c.d_gen :]  # eq. 9: forward + backward, (B, T, D_e)
-        return self.out(h), z, mu, logvar  # (B, T, 27)
+        out: torch.Tensor = self.out(h)  # (B, T, 27)
+        return out, z, mu, logvar
 
-    def rollout(self, mfcc, text, z):
+    def rollout(self, mfcc: torch.Tensor, text: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
         """Free-running edge vectors over chained windows, as generation runs: window ``k`` covers frames
         ``[k s, k s + T)`` with ``s = T - n_seed``, the first seeded with the mean pose (zeros), each next one with
         the previous window's last ``n_seed`` outputs; no ground truth is read.
@@ -214,12 +242,13 @@ class S2AGDiscriminator(nn.Module):
         self.per_frame = nn.Linear(c.d_disc, 1)
         self.over_time = nn.Linear(c.seq_len, 1)
 
-    def forward(self, dirs):
+    def forward(self, dirs: torch.Tensor) -> torch.Tensor:
         """``(B, T, 27)`` mean-subtracted directions -> ``(B,)`` logits (sigmoid: probability of real)."""
         b, t = dirs.shape[:2]
         h, _ = self.gru(self.affective(dirs.reshape(b, t, N_EDGES, 3)))  # (B, T, 9, 3) -> (B, T, D_a) -> (B,T,2D_d)
         h = h[..., : self.config.d_disc] + h[..., self.config.d_disc :]  # eq. 13, (B, T, D_d)
-        return self.over_time(self.per_frame(h)[..., 0])[:, 0]  # (B, T, 1) -> (B, T) -> (B, 1) -> (B,)
+        logit: torch.Tensor = self.over_time(self.per_frame(h)[..., 0])  # (B, T, 1) -> (B, T) -> (B, 1)
+        return logit[:, 0]  # (B,)
 
 
 class S2AGNet(nn.Module):
@@ -231,5 +260,7 @@ class S2AGNet(nn.Module):
         self.generator = S2AGGeneratorNet(config)
         self.discriminator = S2AGDiscriminator(config)
 
-    def forward(self, *args, **kwargs):
-        return self.generator(*args, **kwargs)
+    def forward(self, *args: torch.Tensor | None, **kwargs: torch.Tensor | None) -> GeneratorOutput:
+        """The generator's :meth:`S2AGGeneratorNet.forward`."""
+        out: GeneratorOutput = self.generator(*args, **kwargs)
+        return out

@@ -53,7 +53,8 @@ def part_adjacency() -> np.ndarray:
 
 def _rest_positions() -> np.ndarray:
     rest = np.tile(R.IDENTITY, (1, CANONICAL.n_joints, 1))  # (1, J, 4)
-    return CANONICAL.forward_kinematics(rest, np.zeros((1, 3)))[0]  # (J, 3)
+    pos: np.ndarray = CANONICAL.forward_kinematics(rest, np.zeros((1, 3)))[0]  # (J, 3)
+    return pos
 
 
 _IDX = [CANONICAL.index(n) for n in JOINTS]
@@ -66,7 +67,8 @@ def positions_to_directions(pos: np.ndarray) -> np.ndarray:
     """Joint positions ``(..., 10, 3)`` (the :data:`JOINTS`) -> unit edge directions ``(..., 9, 3)``."""
     src, dst = [s for s, _ in EDGES], [d for _, d in EDGES]
     v = pos[..., dst, :] - pos[..., src, :]  # (..., 9, 3)
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
+    unit: np.ndarray = v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
+    return unit
 
 
 def motion_to_directions(motion: HumanMotion) -> np.ndarray:
@@ -82,7 +84,9 @@ def expmaps_to_directions(poses: np.ndarray) -> np.ndarray:
     return positions_to_directions(pos[:, _IDX])
 
 
-def directions_to_positions(dirs: np.ndarray, lengths: np.ndarray = BONE_LENGTHS, root=None) -> np.ndarray:
+def directions_to_positions(
+    dirs: np.ndarray, lengths: np.ndarray = BONE_LENGTHS, root: np.ndarray | None = None
+) -> np.ndarray:
     """Eq. 11: scale each direction to its bone length and chain from the root.
 
     Parameters
