@@ -16,9 +16,12 @@ Parts, one :class:`RhythmicNet`:
 * gesture lexicon (§5.1): VQ-VAE over motion blocks (4 conv layers + FC, mirrored decoder, eq. 3, w_α = w_β = 1).
 * generator (§5.2-5.3): previous block's motion features (3-layer conv ``E_M``), three consecutive ``a_low``
   blocks (one FC ``E_A``), lexeme, style code, positional encoding (eq. 8) -> MLP encoder -> H groups of C-way
-  Gumbel-softmax latent -> LSTM decoder. Losses: reconstruction, perceptual (0.5), lexeme (0.2), style KL (1.0).
-* interpreters (§6.1-6.3): lexeme classifier from ``a_high``, text and the previous lexeme; style regressor from
-  ``a_low``; each with an audio-only twin.
+  Gumbel-softmax latent -> LSTM decoder (no speaker input: eq. 5). Style codes: one learnable vector per training
+  block (:attr:`RhythmicNet.style_codes`), trained with the generator. Losses: reconstruction, perceptual (0.5),
+  lexeme (0.2), style KL (1.0).
+* interpreters (§6.1-6.3): lexeme classifier from ``a_high``, text, the previous lexeme and the speaker (eq. 16);
+  style regressor from ``a_low``, text, the previous style code and the lexeme (eq. 19), trained on the learned
+  codes; each with an audio-only twin. At run time they choose every block's lexeme and style code.
 * silent-period hint (§6.4.1): lexemes mostly seen on silent blocks are the silent lexemes; silent blocks get
   the silent lexeme nearest the current (training) or previous (inference) one; ~5 % silent blocks are added to
   the generator's training batch. A silent block has no words and, in takes without any words, mostly quiet frames
@@ -65,7 +68,9 @@ class Blocks:
     """The blocks of a batch of training windows (tensors) and the training samples among them.
 
     ``mel`` ``(N, K, n_mels)``, ``text`` ``(N, K, D)`` (scaled: silence = -1), ``poses`` ``(N, K, P)``, ``empty``
-    ``(N,)`` bool (silent block: :func:`.blocks.silent_blocks`); ``prev``, ``cur``, ``nxt`` ``(S,)``
+    ``(N,)`` bool (silent block: :func:`.blocks.silent_blocks`); ``speaker`` ``(N,)`` long (``config.speakers``);
+    ``style_row`` ``(N,)`` long (the block's row of :attr:`RhythmicNet.style_codes`, -1: not a training block);
+    ``prev``, ``cur``, ``nxt`` ``(S,)``
     block indices of the samples (every block but a window's first and last, which serve as context), window by
     window: sample ``w * (W - 2) + j`` is block ``j + 1`` of window ``w``.
     """
@@ -78,7 +83,8 @@ class Blocks:
     cur: Any
     nxt: Any
     per_window: int
-    speaker: Any = None
+    speaker: Any
+    style_row: Any
 
 
 class RhythmicNet(nn.Module):
@@ -100,8 +106,10 @@ class RhythmicNet(nn.Module):
         self.vq = MotionVQ(c)
         self.gen = BlockGenerator(c, self.low_dim)
         n_s, d_s, d_z = c.lexicon_size, c.lexeme_dim, c.style_dim
-        self.lex_interp = Interpreter(c, self.high_dim, d_s, n_s, with_text=True)
-        self.lex_interp_audio = Interpreter(c, self.high_dim, d_s, n_s, with_text=False)
+        # {z_i} of §5.3: one free style code per training block, learned with the generator (N(0, 1) start: eq. 14)
+        self.style_codes = nn.Embedding(c.n_style_rows, d_z)
+        self.lex_interp = Interpreter(c, self.high_dim, d_s, n_s, with_text=True, with_speaker=True)  # eq. 16
+        self.lex_interp_audio = Interpreter(c, self.high_dim, d_s, n_s, with_text=False, with_speaker=True)
         self.style_interp = Interpreter(c, self.low_dim, d_z + d_s, d_z, with_text=True)
         self.style_interp_audio = Interpreter(c, self.low_dim, d_z + d_s, d_z, with_text=False)
         self.register_buffer("lex_empty", torch.zeros(n_s))  # EMA count of empty-word blocks per lexeme
@@ -152,17 +160,23 @@ class RhythmicNet(nn.Module):
         d = torch.cdist(s, self.vq.codebook.detach())  # (B, N_s)
         return d.masked_fill(~mask[None], math.inf).argmin(dim=1)
 
+    def block_styles(self, rows):
+        """Learned style codes ``(N, d_z)`` of blocks with style-code ``rows`` ``(N,)``; 0 where a row is -1 (not a
+        training block: validation takes, and the silent blocks' z = 0 of §6.4.1)."""
+        known = rows >= 0
+        return self.style_codes(rows.clamp_min(0)) * known[:, None]
+
     # ---- training
     def segment(self, speech, poses) -> Blocks:
-        """Trainer windows ``(B, W * K, M + D + 2)``, ``(B, W * K, P)`` from :meth:`RhythmicSpec.make_windows`
-        (``W`` consecutive blocks laid end to end; the last two input channels: silent-block flag, speaker index)
-        -> blocks."""
+        """Trainer windows ``(B, W * K, M + D + 3)``, ``(B, W * K, P)`` from :meth:`RhythmicSpec.make_windows`
+        (``W`` consecutive blocks laid end to end; the last three input channels: silent-block flag, speaker index,
+        style-code row) -> blocks."""
         c = self.config
         k, m, d = c.block, c.n_mels, c.n_text
         b, length = speech.shape[:2]
-        if speech.shape[2] != m + d + 2 or length % k:
+        if speech.shape[2] != m + d + 3 or length % k:
             raise InputError(
-                f"rhythmic windows are {tuple(speech.shape)}, expected (B, W * {k}, {m + d + 2}); "
+                f"rhythmic windows are {tuple(speech.shape)}, expected (B, W * {k}, {m + d + 3}); "
                 "make them with RhythmicSpec.make_windows"
             )
         w = length // k
@@ -174,8 +188,9 @@ class RhythmicNet(nn.Module):
             mel=x[..., :m],
             text=x[..., m : m + d] / TEXT_SCALE,
             poses=poses.reshape(b * w, k, -1),  # (B, W * K, P) -> (B * W, K, P)
-            empty=x[:, 0, -2] > 0.5,
-            speaker=x[:, 0, -1].round().long(),
+            empty=x[:, 0, -3] > 0.5,
+            speaker=x[:, 0, -2].round().long(),
+            style_row=x[:, 0, -1].round().long(),
             prev=cur - 1,
             cur=cur,
             nxt=cur + 1,
@@ -257,17 +272,17 @@ class RhythmicNet(nn.Module):
             lex_t = idx[i].clone()  # targets: lexeme index, silent blocks forced to the nearest silent lexeme
             forced = self.nearest_silent(s_all[i])
             lex_t = torch.where(bl.empty[i] & (forced >= 0), forced, lex_t)
-            with torch.no_grad():
-                z_t = self.gen.style_code(bl.poses[i])
-                z_prev = self.gen.style_code(bl.poses[p])
+            with torch.no_grad():  # targets: the learned style codes of the blocks (§6.4)
+                z_t = self.block_styles(bl.style_row[i])
+                z_prev = self.block_styles(bl.style_row[p])
             ctx_z = torch.cat([z_prev, s_all[i]], dim=1)
-            text_i = bl.text[i]
+            text_i, spk = bl.text[i], bl.speaker[i]
             l_int = zero
             for lex_net, sty_net in (
                 (self.lex_interp, self.style_interp),
                 (self.lex_interp_audio, self.style_interp_audio),
             ):
-                l_int = l_int + F.cross_entropy(lex_net(h3, text_i, s_all[p]), lex_t)
+                l_int = l_int + F.cross_entropy(lex_net(h3, text_i, s_all[p], spk), lex_t)
                 l_int = l_int + F.mse_loss(sty_net(a3, text_i, ctx_z), z_t)
             parts["interp"] = l_int
         return self._total(parts, speech)
@@ -295,11 +310,10 @@ class RhythmicNet(nn.Module):
         p, i, n = bl.prev, bl.cur, bl.nxt
         a3 = torch.cat([a_low[p], a_low[i], a_low[n]], dim=2)  # (S, K, 3 d_a)
         target = bl.poses[i]
-        z = self.gen.style_code(target)  # (S, d_z)
+        z = self.block_styles(bl.style_row[i])  # (S, d_z) the blocks' learnable codes, trained with G (§5.3)
         s = s_all[i]
         n_real = i.numel()
-        spk = bl.speaker[i]  # (S,)
-        gen = self.rollout(bl.poses[p[:: bl.per_window]], a3, s, z, bl.per_window, spk)  # (S, K, P)
+        gen = self.rollout(bl.poses[p[:: bl.per_window]], a3, s, z, bl.per_window)  # (S, K, P)
         prev_m = bl.poses[p]
         after_empty = torch.nonzero(bl.empty[p]).flatten()
         silent_of_prev = self.nearest_silent(s_all[p])
@@ -314,16 +328,13 @@ class RhythmicNet(nn.Module):
             s = torch.cat([s, self.vq.codebook.detach()[silent_of_prev[pick]]])
             z = torch.cat([z, z.new_zeros(pick.numel(), c.style_dim)])
             target = torch.cat([target, still])
-            spk = torch.cat([spk, bl.speaker[pp]])
         if prev_m.shape[0] > n_real:  # the inserted silent blocks, one step each from their held pose
-            extra, _ = self.gen(prev_m[n_real:], a3[n_real:], s[n_real:], z[n_real:], speaker=spk[n_real:])
+            extra, _ = self.gen(prev_m[n_real:], a3[n_real:], s[n_real:], z[n_real:])
             gen = torch.cat([gen, extra])  # (S', K, P)
         l_rec = F.mse_loss(gen, target)
         l_perc = F.mse_loss(self.vq.encode(gen, frozen=True), self.vq.encode(target, frozen=True).detach())
         perm = torch.randperm(n_real, device=a_low.device)  # eq. 12: same lexeme, another block's other inputs
-        other, _ = self.gen(
-            prev_m[:n_real][perm], a3[:n_real][perm], s[:n_real], z[:n_real][perm], speaker=spk[:n_real][perm]
-        )
+        other, _ = self.gen(prev_m[:n_real][perm], a3[:n_real][perm], s[:n_real], z[:n_real][perm])
         l_lex = F.mse_loss(self.vq.encode(other, frozen=True), s[:n_real])
         zr = z[:n_real]
         mu, var = zr.mean(0), zr.var(0, unbiased=False) + 1e-6
@@ -331,16 +342,15 @@ class RhythmicNet(nn.Module):
         l_gen = c.w_rec * l_rec + c.w_perc * l_perc + c.w_lexeme * l_lex + c.w_z * l_z
         return {"gen": l_gen, "rec": l_rec, "perc": l_perc, "lexeme": l_lex, "kl": l_z}
 
-    def rollout(self, first_prev, a3, s, z, per_window: int, speaker=None):
+    def rollout(self, first_prev, a3, s, z, per_window: int):
         """Generate each window's sample blocks one after another from its ground-truth context block.
 
         Parameters
         ----------
         first_prev : Tensor [shape=(B, K, P)]
             Each window's first (context) block.
-        a3, s, z, speaker : Tensor [shape=(S, ...)]
-            Per sample block (``S = B * per_window``, window by window): audio of blocks i-1, i, i+1, lexeme, style,
-            speaker index (optional).
+        a3, s, z : Tensor [shape=(S, ...)]
+            Per sample block (``S = B * per_window``, window by window): audio of blocks i-1, i, i+1, lexeme, style.
 
         Returns
         -------
@@ -350,9 +360,8 @@ class RhythmicNet(nn.Module):
         b = first_prev.shape[0]
         view = lambda x: x.reshape(b, per_window, *x.shape[1:])  # noqa: E731  (S, ...) -> (B, W - 2, ...)
         a3, s, z = view(a3), view(s), view(z)
-        spk = view(speaker) if speaker is not None else None
         prev, state, outs = first_prev, None, []
         for j in range(per_window):
-            prev, state = self.gen(prev, a3[:, j], s[:, j], z[:, j], state, None if spk is None else spk[:, j])
+            prev, state = self.gen(prev, a3[:, j], s[:, j], z[:, j], state)
             outs.append(prev)
         return torch.stack(outs, dim=1).flatten(0, 1)  # (B, W - 2, K, P) -> (S, K, P)
