@@ -9,9 +9,13 @@ nothing of the target motion is used. :meth:`RhythmicGenerator.generate_blocks` 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 from robogest.generators.learned.rhythmic.model import Blocks, RhythmicNet, torch
+
+if TYPE_CHECKING:
+    from torch import Tensor
+    from torch.nn import Module
 
 #: Weight of the speed term in :func:`free_running_score`.
 SPEED_WEIGHT = 1.0
@@ -26,24 +30,28 @@ class BlockInputs:
     words: the interpreters with text, else the audio-only ones, §6.3); ``speaker`` ``(B,)`` long.
     """
 
-    a3: Any
-    h3: Any
-    text: Any
-    silent: Any
-    with_text: Any
-    speaker: Any
+    a3: Tensor
+    h3: Tensor
+    text: Tensor
+    silent: Tensor
+    with_text: Tensor
+    speaker: Tensor
 
 
-def _either(with_text, net_text, net_audio, *args: Any) -> Any:
+def _either(with_text: Tensor, net_text: Module, net_audio: Module, *args: Tensor | None) -> Tensor:
     """Run the text or the audio-only interpreter per sequence (only the one(s) needed)."""
     if bool(with_text.all()):
-        return net_text(*args)
+        text_out: Tensor = net_text(*args)
+        return text_out
     if not bool(with_text.any()):
-        return net_audio(*args)
+        audio_out: Tensor = net_audio(*args)
+        return audio_out
     return torch.where(with_text[:, None], net_text(*args), net_audio(*args))
 
 
-def _lexemes(net: RhythmicNet, inp: BlockInputs, j: int, s_prev, temperature: float, generator) -> Any:
+def _lexemes(
+    net: RhythmicNet, inp: BlockInputs, j: int, s_prev: Tensor, temperature: float, generator: torch.Generator | None
+) -> Tensor:
     """Block ``j``'s lexeme indices ``(B,)`` from the lexeme interpreter: most likely, or sampled (temperature)."""
     logits = _either(inp.with_text, net.lex_interp, net.lex_interp_audio, inp.h3[:, j], inp.text[:, j], s_prev,
                      inp.speaker)  # fmt: skip
@@ -56,12 +64,12 @@ def _lexemes(net: RhythmicNet, inp: BlockInputs, j: int, s_prev, temperature: fl
 def free_run(
     net: RhythmicNet,
     inp: BlockInputs,
-    lexemes: Any = None,
-    styles: Any = None,
+    lexemes: Tensor | None = None,
+    styles: Tensor | None = None,
     force_silent: bool = True,
     temperature: float = 0.0,
-    generator: Any = None,
-) -> tuple[Any, Any]:
+    generator: torch.Generator | None = None,
+) -> tuple[Tensor, Tensor]:
     """Generate ``C`` blocks of each sequence one after another, as at run time.
 
     Parameters
@@ -126,7 +134,10 @@ def window_inputs(net: RhythmicNet, bl: Blocks) -> BlockInputs:
     a_low, a_high, _ = net.audio_features(bl.mel)
     p, i, n = bl.prev, bl.cur, bl.nxt
     w = bl.per_window
-    view = lambda x: x.reshape(-1, w, *x.shape[1:])  # noqa: E731  (S, ...) -> (B, W - 2, ...)
+
+    def view(x: Tensor) -> Tensor:  # (S, ...) -> (B, W - 2, ...)
+        return x.reshape(-1, w, *x.shape[1:])
+
     text = view(bl.text[i])  # (B, W - 2, K, D)
     return BlockInputs(
         a3=view(torch.cat([a_low[p], a_low[i], a_low[n]], dim=2)),
@@ -138,7 +149,7 @@ def window_inputs(net: RhythmicNet, bl: Blocks) -> BlockInputs:
     )
 
 
-def free_running_score(generated, target) -> Any:
+def free_running_score(generated: Tensor, target: Tensor) -> Tensor:
     """The selection objective: MSE of the poses plus :data:`SPEED_WEIGHT` x the squared error of each pose
     channel's RMS speed.
 
@@ -160,5 +171,8 @@ def free_running_score(generated, target) -> Any:
     Tensor [shape=()]
     """
     g, t = generated.flatten(1, 2), target.flatten(1, 2)  # (B, C, K, P) -> (B, C * K, P)
-    speed = lambda x: x.diff(dim=1).pow(2).mean(dim=1).sqrt()  # noqa: E731  (B, T, P) -> (B, P)
+
+    def speed(x: Tensor) -> Tensor:  # (B, T, P) -> (B, P) RMS of the frame differences
+        return x.diff(dim=1).pow(2).mean(dim=1).sqrt()
+
     return (g - t).pow(2).mean() + SPEED_WEIGHT * (speed(g) - speed(t)).pow(2).mean()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -49,9 +50,13 @@ class RhythmicGenerator(CheckpointGenerator):
     config_cls = RhythmicConfig
     net_cls = RhythmicNet
 
-    def configure(self, lexeme_temperature: float | None = None, speaker: int | str | None = None) -> None:
+    def configure(
+        self, lexeme_temperature: float | None = None, speaker: int | str | None = None, **options: Any
+    ) -> None:
         """``lexeme_temperature``: 0 the most likely lexeme, > 0 sample at that temperature; None: the config's.
-        ``speaker``: index or key (e.g. BEAT2's ``"2"``) of a training speaker; None: the first."""
+        ``speaker``: index or key (e.g. BEAT2's ``"2"``) of a training speaker; None: the first. Any other option
+        is refused (:meth:`CheckpointGenerator.configure`)."""
+        super().configure(**options)
         if lexeme_temperature is not None and not lexeme_temperature >= 0:
             raise InputError(f"lexeme_temperature={lexeme_temperature!r}: must be >= 0 (0: the most likely lexeme)")
         self.temperature = lexeme_temperature
@@ -72,7 +77,7 @@ class RhythmicGenerator(CheckpointGenerator):
         styles: np.ndarray | None = None,
         force_silent: bool = True,
         temperature: float = 0.0,
-        generator=None,
+        generator: torch.Generator | None = None,
     ) -> BlockPlan:
         """Blocks at the beats of :func:`take_rhythm`, lexemes/styles from the interpreters (or given), motion
         denormalised: :func:`.freerun.free_run` on the whole speech (the loop validation scores too).
@@ -94,7 +99,9 @@ class RhythmicGenerator(CheckpointGenerator):
         generator : torch.Generator, optional
             Random source of the samples (``temperature > 0``).
         """
-        c, m = self.config, self.model
+        c, m, norm = self.config, self.model, self.norm
+        if norm is None:
+            raise InputError("the rhythmic generator has no normalisation statistics (pass norm= to from_model)")
         t_frames = speech.n_frames
         acoustic, text = speech_inputs(speech, self.features, self.encoder)  # (T, 69), (T, D)
         audio = None
@@ -102,7 +109,7 @@ class RhythmicGenerator(CheckpointGenerator):
             from robogest.speech.audio import resample
 
             audio = resample(speech.audio, speech.sr, c.audio_sr)
-        tb = take_blocks(acoustic[:, : c.n_mels], text, self.norm, c, audio, beats_s=speech.beats_s)
+        tb = take_blocks(acoustic[:, : c.n_mels], text, norm, c, audio, beats_s=speech.beats_s)
         bounds, silent = tb.bounds, tb.silent  # (C + 1,), (C,)
         n_b = len(bounds) - 1
         if n_b == 0 or t_frames == 0:
@@ -127,7 +134,7 @@ class RhythmicGenerator(CheckpointGenerator):
             out, ids = free_run(m, inp, forced_lex, forced_z, force_silent, temperature, generator)
             blocks, lex_ids = out[0].cpu().numpy(), ids[0].cpu().numpy().astype(int)  # (C, K, P), (C,)
         poses = denormalize_blocks(blocks, np.diff(bounds))  # (T, P), normalised
-        poses = self.norm.pose_inverse(gaussian_smooth(poses, c.smooth_kernel))
+        poses = norm.pose_inverse(gaussian_smooth(poses, c.smooth_kernel))
         return BlockPlan(bounds, lex_ids, silent, poses)
 
     def generate(self, speech: Speech, seed: int = 0) -> HumanMotion:

@@ -43,23 +43,30 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from robogest.learn import require_torch
 
-torch = require_torch("the 'rhythmic' generator")
-nn = torch.nn
-F = torch.nn.functional
+if TYPE_CHECKING:  # the checker sees torch's own types; at run time a missing torch is one clear error
+    import torch
+    from torch import Tensor, nn
+    from torch.nn import functional as F
 
-from robogest.errors import InputError  # noqa: E402
-from robogest.generators.learned.rhythmic.config import (  # noqa: E402
+    from robogest.learn.dist import Sync
+else:
+    torch = require_torch("the 'rhythmic' generator")
+    nn = torch.nn
+    F = torch.nn.functional
+
+from robogest.errors import InputError
+from robogest.generators.learned.rhythmic.config import (
     SILENT_RUN_LATER,
     STAGE_LOSSES,
     STAGES,
     TEXT_SCALE,
     RhythmicConfig,
 )
-from robogest.generators.learned.rhythmic.networks import AUDIO_ENCODERS, BlockGenerator, Interpreter, MotionVQ  # noqa: E402
+from robogest.generators.learned.rhythmic.networks import AUDIO_ENCODERS, BlockGenerator, Interpreter, MotionVQ
 
 
 # --------------------------------------------------------------------------------------------------- whole model
@@ -90,6 +97,9 @@ class Blocks:
 class RhythmicNet(nn.Module):
     """All learned parts; ``forward(speech, poses, epoch)`` is the training loss (see the module docstring)."""
 
+    lex_empty: Tensor  # buffer (N_s,)
+    lex_total: Tensor  # buffer (N_s,)
+
     def __init__(self, config: RhythmicConfig) -> None:
         super().__init__()
         c = self.config = config
@@ -117,12 +127,12 @@ class RhythmicNet(nn.Module):
         self.last_parts: dict[str, float] = {}
 
     # ---- features
-    def audio_features(self, mel):
+    def audio_features(self, mel: Tensor) -> tuple[Tensor, Tensor, list[Tensor]]:
         """``mel`` ``(N, K, n_mels)`` -> ``(a_low, a_high, layers)``: ``(N, K, d_a)``, ``(N, K, d_A)``, list."""
         layers = self.audio(mel)
         return layers[self.low_index], layers[-1], layers
 
-    def contrastive_loss(self, text, layers, mask):
+    def contrastive_loss(self, text: Tensor, layers: list[Tensor], mask: Tensor) -> Tensor:
         """Eq. 1: text anchors, ``a^L`` of the same frame positive, every layer of every frame of the block in the
         denominator. ``text`` ``(N, K, D)``, ``mask`` ``(N, K)`` frames inside words (where text exists)."""
         if not any(p.requires_grad for p in self.audio.parameters()):
@@ -142,7 +152,7 @@ class RhythmicNet(nn.Module):
         return (ce * m).sum() / m.sum().clamp_min(1.0)
 
     # ---- lexicon helpers
-    def silent_mask(self):
+    def silent_mask(self) -> Tensor:
         """Silent lexemes ``(N_s,)`` bool: mostly used on empty-word blocks (the most such one if none qualifies)."""
         share = self.lex_empty / self.lex_total.clamp_min(1e-6)
         mask = (share >= self.config.silent_share) & (self.lex_total > 1e-3)
@@ -152,7 +162,7 @@ class RhythmicNet(nn.Module):
                 mask[self.lex_empty.argmax()] = True
         return mask
 
-    def nearest_silent(self, s):
+    def nearest_silent(self, s: Tensor) -> Tensor:
         """Index ``(B,)`` of the silent lexeme nearest each lexeme vector ``s`` ``(B, d_s)`` (-1: none known)."""
         mask = self.silent_mask()
         if not bool(mask.any()):
@@ -160,14 +170,14 @@ class RhythmicNet(nn.Module):
         d = torch.cdist(s, self.vq.codebook.detach())  # (B, N_s)
         return d.masked_fill(~mask[None], math.inf).argmin(dim=1)
 
-    def block_styles(self, rows):
+    def block_styles(self, rows: Tensor) -> Tensor:
         """Learned style codes ``(N, d_z)`` of blocks with style-code ``rows`` ``(N,)``; 0 where a row is -1 (not a
         training block: validation takes, and the silent blocks' z = 0 of §6.4.1)."""
-        known = rows >= 0
-        return self.style_codes(rows.clamp_min(0)) * known[:, None]
+        codes: Tensor = self.style_codes(rows.clamp_min(0))  # (N, d_z)
+        return codes * (rows >= 0)[:, None]
 
     # ---- training
-    def segment(self, speech, poses) -> Blocks:
+    def segment(self, speech: Tensor, poses: Tensor) -> Blocks:
         """Trainer windows ``(B, W * K, M + D + 3)``, ``(B, W * K, P)`` from :meth:`RhythmicSpec.make_windows`
         (``W`` consecutive blocks laid end to end; the last three input channels: silent-block flag, speaker index,
         style-code row) -> blocks."""
@@ -198,7 +208,7 @@ class RhythmicNet(nn.Module):
         )
 
     @torch.no_grad()
-    def before_step(self, speech, poses, epoch: int = 0, sync=None) -> None:
+    def before_step(self, speech: Tensor, poses: Tensor, epoch: int = 0, sync: Sync | None = None) -> None:
         """The state that is not learned by gradient, updated from a training batch before its step: the lexicon's
         codebook upkeep (:meth:`MotionVQ.maintain`, while the lexicon trains) and the silent-lexeme statistics.
 
@@ -222,7 +232,7 @@ class RhythmicNet(nn.Module):
         self.lex_total.mul_(0.98).add_(counts[:n_s])
         self.lex_empty.mul_(0.98).add_(counts[n_s:])
 
-    def forward(self, speech, poses, epoch: int = 0):
+    def forward(self, speech: Tensor, poses: Tensor, epoch: int = 0) -> Tensor:
         """Loss of trainer windows (see :meth:`segment`) at ``epoch``.
 
         In training mode only the stage of ``epoch`` (:meth:`RhythmicConfig.stage_at`) is computed and learns, the
@@ -287,7 +297,7 @@ class RhythmicNet(nn.Module):
             parts["interp"] = l_int
         return self._total(parts, speech)
 
-    def _total(self, parts: dict[str, Any], speech):
+    def _total(self, parts: dict[str, Any], speech: Tensor) -> Tensor:
         """Sum of the stages' objectives in ``parts`` (the other entries are their terms, logged only)."""
         self.last_parts = {k: float(v.detach()) for k, v in parts.items()}
         total = sum((parts[k] for k in STAGE_LOSSES if k in parts), speech.new_zeros(()))
@@ -295,7 +305,7 @@ class RhythmicNet(nn.Module):
             total = total + speech.new_zeros((), requires_grad=True)
         return total
 
-    def generator_losses(self, bl: Blocks, a_low, s_all, idx) -> dict[str, Any]:
+    def generator_losses(self, bl: Blocks, a_low: Tensor, s_all: Tensor, idx: Tensor) -> dict[str, Tensor]:
         """Eq. 9 (``"gen"``, with its parts for the log) on the generator's rollout over each window plus inserted
         silent blocks.
 
@@ -342,7 +352,7 @@ class RhythmicNet(nn.Module):
         l_gen = c.w_rec * l_rec + c.w_perc * l_perc + c.w_lexeme * l_lex + c.w_z * l_z
         return {"gen": l_gen, "rec": l_rec, "perc": l_perc, "lexeme": l_lex, "kl": l_z}
 
-    def rollout(self, first_prev, a3, s, z, per_window: int):
+    def rollout(self, first_prev: Tensor, a3: Tensor, s: Tensor, z: Tensor, per_window: int) -> Tensor:
         """Generate each window's sample blocks one after another from its ground-truth context block.
 
         Parameters
