@@ -439,8 +439,8 @@ def test_resumed_run_keeps_its_stage_plan(fixture_data, tmp_path):
 
 def test_generator_trains_on_a_rollout_with_its_state_carried_over(takes_and_speech):
     """Generator stage (as the authors' code): within a window each block is generated from the previous generated
-    block and the LSTM state after it; only the window's first block is ground truth. Eval (validation) runs the
-    same free rollout."""
+    block and the LSTM state after it; only the window's first block is ground truth. Eval mode (the teacher-forced
+    sum of the stages' objectives) runs the same rollout."""
     from robogest.generators.learned.rhythmic import SPEC, RhythmicNet
 
     takes = [t for t, _ in takes_and_speech]

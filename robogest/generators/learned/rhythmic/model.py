@@ -172,7 +172,7 @@ class RhythmicNet(nn.Module):
 
     def block_styles(self, rows: Tensor) -> Tensor:
         """Learned style codes ``(N, d_z)`` of blocks with style-code ``rows`` ``(N,)``; 0 where a row is -1 (not a
-        training block: validation takes, and the silent blocks' z = 0 of §6.4.1)."""
+        training block: a validation take's, whose codes at run time come from the style interpreter)."""
         codes: Tensor = self.style_codes(rows.clamp_min(0))  # (N, d_z)
         return codes * (rows >= 0)[:, None]
 
@@ -236,8 +236,9 @@ class RhythmicNet(nn.Module):
         """Loss of trainer windows (see :meth:`segment`) at ``epoch``.
 
         In training mode only the stage of ``epoch`` (:meth:`RhythmicConfig.stage_at`) is computed and learns, the
-        earlier ones frozen; in joint training, and in evaluation mode (the validation loss), it is the sum of all
-        four stages' objectives, each gradient-isolated:
+        earlier ones frozen; in joint training, and in evaluation mode, it is the sum of all four stages' objectives,
+        each gradient-isolated (``best.pt`` is chosen on free-running generation instead:
+        :meth:`RhythmicSpec.validation_loss`):
 
         1. audio encoder: contrastive eq. 1 (its outputs are detached downstream);
         2. lexicon: VQ-VAE eq. 3 (lexemes detached downstream; the perceptual/lexeme losses use its encoder
