@@ -321,7 +321,7 @@ class SimReport:
     wall_s : float, seconds
         Wall-clock time of the whole run.
     extra : dict
-        ``playback``: the player's report; with a video, ``video`` (:class:`~robogest.backends.video.VideoStats`,
+        ``playback``: the player's report; with a video, ``video`` (:class:`~robogest.backends.recorder.VideoStats`,
         where its time went) and ``video_settings`` (size, options, renderer).
     """
 
@@ -470,7 +470,7 @@ def simulate(
     out_path = None
     try:
         if video_path is not None:
-            from robogest.backends.video import VideoRecorder
+            from robogest.backends.recorder import VideoRecorder
 
             settings = _render.video_settings(width, height)
             video = VideoRecorder(model, data, robot, video_path, settings, video_fps, audio, audio_sr)

@@ -22,10 +22,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robogest.backends.audio import AudioOut, open_output
 from robogest.backends.base import Backend
 from robogest.backends.control import ControlLoop, Interrupted, signals_end_at_rest
 from robogest.errors import BackendError, RobogestError
+from robogest.media.audio import AudioOut, open_output
 from robogest.trajectory.types import Trajectory, check_matches
 
 

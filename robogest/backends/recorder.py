@@ -20,6 +20,7 @@ import numpy as np
 
 from robogest.backends import render as _render
 from robogest.errors import RobogestError
+from robogest.media.video import VideoWriter
 from robogest.robot.config import RobotConfig
 
 #: Frames waiting for the encoder at most: enough to ride out a slow frame, little memory (2.7 MB a 720p frame).
@@ -55,7 +56,7 @@ class VideoRecorder:
     robot : RobotConfig
         For the framing camera of a scene without one of its own.
     path : str or Path
-        Output ``.mp4``, written atomically (see :class:`~robogest.backends.render.VideoWriter`).
+        Output ``.mp4``, written atomically (see :class:`~robogest.media.video.VideoWriter`).
     settings : VideoSettings
         Frame size and render options (:func:`~robogest.backends.render.video_settings`).
     fps : int
@@ -78,7 +79,7 @@ class VideoRecorder:
         w, h = settings.width, settings.height
         self.settings = settings
         self.stats = VideoStats()
-        self.writer = _render.VideoWriter(path, w, h, fps, audio, audio_sr)
+        self.writer = VideoWriter(path, w, h, fps, audio, audio_sr)
         self.frame_dt = 1.0 / fps
         self.half_step = 0.5 * float(model.opt.timestep)
         self.next_t = 0.0
