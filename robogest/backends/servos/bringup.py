@@ -1,6 +1,6 @@
 """Bring-up of a real servo bus: find the servos (scan) and check what commonly breaks a bus (doctor).
 
-Both work below the robot abstraction on a :class:`ServoLink` (one port, one protocol, one baud rate,
+Both work below the robot abstraction on a :class:`~.transport.Transport` (one port, one protocol, one baud rate,
 exclusively opened), because the point is to find out what the bus really holds before a robot YAML can
 be trusted. Ticks and raw register values appear here; joint radians only where a robot is given.
 """
@@ -16,195 +16,119 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
-from robogest.backends.servo_common import close_port, open_port_exclusive
+from robogest.backends.servos.protocol import PROTOCOL_NAMES, ServoProtocol
+from robogest.backends.servos.transport import Transport
 from robogest.errors import BackendError, InputError
 
+DXL2, DXL1, STS, SCS = ServoProtocol.DXL2, ServoProtocol.DXL1, ServoProtocol.STS, ServoProtocol.SCS
 #: Protocols in the order they are tried: the most common first, Protocol 1.0 (no usable broadcast ping) last.
-PROTOCOLS = ("dxl2", "sts", "scs", "dxl1")
+PROTOCOLS = tuple(ServoProtocol.named(n) for n in PROTOCOL_NAMES)
 #: Baud rates per protocol, the factory defaults and the most common settings first.
 COMMON_BAUDS = {
-    "dxl2": (57_600, 1_000_000, 115_200, 2_000_000, 3_000_000, 4_000_000, 9_600),
-    "sts": (1_000_000, 500_000, 115_200, 57_600, 250_000, 128_000, 38_400, 19_200),
-    "scs": (1_000_000, 500_000, 115_200, 57_600, 250_000, 128_000, 38_400, 19_200),
-    "dxl1": (1_000_000, 57_600, 115_200, 9_600, 2_000_000),
+    DXL2: (57_600, 1_000_000, 115_200, 2_000_000, 3_000_000, 4_000_000, 9_600),
+    STS: (1_000_000, 500_000, 115_200, 57_600, 250_000, 128_000, 38_400, 19_200),
+    SCS: (1_000_000, 500_000, 115_200, 57_600, 250_000, 128_000, 38_400, 19_200),
+    DXL1: (1_000_000, 57_600, 115_200, 9_600, 2_000_000),
 }
-FAMILY = {"dxl2": ("dynamixel", 2.0), "dxl1": ("dynamixel", 1.0), "sts": ("feetech", 0.0), "scs": ("feetech", 1.0)}
 #: Protocols with one packet format (Dynamixel Protocol 1.0's, which Feetech took over; only the byte order of
 #: values differs): a servo answers a ping in each of them.
-SAME_PACKETS = ("sts", "scs", "dxl1")
+SAME_PACKETS = (STS, SCS, DXL1)
 
 
-def protocol_name(family: str, protocol: float) -> str:
-    """``("feetech", 0)`` -> ``"sts"`` (the names ``servo`` subcommands take)."""
-    for name, fp in FAMILY.items():
-        if fp == (family, float(protocol)):
-            return name
-    raise InputError(f"no servo protocol for family {family!r} protocol {protocol:g}")
-
-
-class ServoLink:
-    """A port opened with one vendor SDK for one protocol at one baud rate (exclusively)."""
-
-    def __init__(self, port: str, protocol: str, baud: int) -> None:
-        if protocol not in FAMILY:
-            raise InputError(f"unknown servo protocol {protocol!r}; one of {', '.join(FAMILY)}")
-        self.protocol, self.port_name, self.baud = protocol, port, baud
-        if protocol.startswith("dxl"):
-            import dynamixel_sdk as sdk
-
-            self.ph = sdk.PacketHandler(2.0 if protocol == "dxl2" else 1.0)
-        else:
-            import scservo_sdk as sdk
-
-            sdk.SCS_SETEND(0 if protocol == "sts" else 1)
-            self.ph = sdk.PacketHandler(0 if protocol == "sts" else 1)
-        self.sdk = sdk
-        self.port = open_port_exclusive(sdk, port, baud)
-
-    def close(self) -> None:
-        close_port(self.port)
-
-    def __enter__(self) -> ServoLink:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def registers(self) -> Any:
-        from robogest.backends.dynamixel_tables import P1Reg, XReg
-        from robogest.backends.feetech_tables import SCSReg, STSReg
-
-        return {"dxl2": XReg, "dxl1": P1Reg, "sts": STSReg, "scs": SCSReg}[self.protocol]
-
-    def reg(self, *names: str) -> Enum:
-        """The first of ``names`` this protocol's table has."""
-        regs = self.registers()
-        return next(regs[n] for n in names if n in regs.__members__)
-
-    def ok(self, comm: int) -> bool:
-        return comm == self.sdk.COMM_SUCCESS
-
-    def model_name(self, number: int) -> str:
-        from robogest.backends.dynamixel_tables import MODELS as DM
-        from robogest.backends.feetech_tables import MODELS as FM
-
-        models = DM.values() if self.protocol.startswith("dxl") else FM.values()
-        return next((m.name for m in models if m.number == number), "?")
-
-    def _prep(self) -> None:
-        if self.protocol in ("sts", "scs"):
-            self.sdk.SCS_SETEND(0 if self.protocol == "sts" else 1)
-        self.port.is_using = False
-        self.port.ser.reset_input_buffer()
-
-    def read(self, sid: int, reg: Enum, attempts: int = 3) -> int:
-        """One register (unsigned raw value); raises :class:`BackendError` naming the servo and register."""
-        addr, size = reg.value
-        for _ in range(attempts):
-            self._prep()
-            data, comm, _ = self.ph.readTxRx(self.port, sid, addr, size)
-            if self.ok(comm) and len(data) == size:
-                return int.from_bytes(bytes(data), "big" if self.protocol == "scs" else "little")
-        raise BackendError(f"servo id {sid}: reading {reg.name}: {self.ph.getTxRxResult(comm)}")
-
-    def write(self, sid: int, reg: Enum, value: int, attempts: int = 3) -> int:
-        """One register; returns the status error byte."""
-        addr, size = reg.value
-        data = list(int(value).to_bytes(size, "big" if self.protocol == "scs" else "little"))
-        for _ in range(attempts):
-            self._prep()
-            comm, err = self.ph.writeTxRx(self.port, sid, addr, size, data)
-            if self.ok(comm):
-                return int(err)
-        raise BackendError(f"servo id {sid}: writing {reg.name}: {self.ph.getTxRxResult(comm)}")
-
-    def write_eeprom(self, sid: int, reg: Enum, value: int) -> None:
-        """An EEPROM write that sticks: torque off first; on Feetech, Lock opened for it and restored after."""
-        self.write(sid, self.reg("TORQUE_ENABLE"), 0)
-        lock = self.reg("LOCK") if "LOCK" in self.registers().__members__ else None
-        was = self.read(sid, lock) if lock is not None else None
+def write_eeprom(link: Transport, sid: int, reg: Enum, value: int) -> None:
+    """An EEPROM write that sticks: torque off first; on Feetech, Lock opened for it and restored after."""
+    link.write(sid, link.wire.reg("TORQUE_ENABLE"), 0)
+    lock = link.wire.reg("LOCK") if "LOCK" in link.wire.registers.__members__ else None
+    was = link.read(sid, lock) if lock is not None else None
+    if lock is not None and was:
+        link.write(sid, lock, 0)
+    try:
+        err = link.write(sid, reg, value)
+    finally:
         if lock is not None and was:
-            self.write(sid, lock, 0)
-        try:
-            err = self.write(sid, reg, value)
-        finally:
-            if lock is not None and was:
-                self.write(sid, lock, was)
-        if err:
-            raise BackendError(f"servo id {sid}: {reg.name} refused value {value} (error byte 0x{err:02X})")
-
-    def broadcast_ping(self, max_id: int = 252) -> list[int]:
-        """Ids that answer one broadcast PING, in one round trip (each servo answers in its own time slot).
-
-        Waits for ids up to ``max_id``: 3 ms per id on Dynamixel 2.0 (as the SDK allows), 1 ms elsewhere, + 50 ms.
-        """
-        self._prep()
-        if self.protocol == "dxl2":
-            pkt = [0] * 10
-            pkt[4], pkt[5], pkt[6], pkt[7] = 0xFE, 3, 0, 1  # id, length, instruction PING
-            wait_ms = 3.0 * max_id + 50.0
-        else:
-            pkt = [0] * 6
-            pkt[2], pkt[3], pkt[4] = 0xFE, 2, 1
-            wait_ms = 1.0 * max_id + 50.0
-        if not self.ok(self.ph.txPacket(self.port, pkt)):
-            raise BackendError(f"cannot write to {self.port_name}")
-        id_at = 4 if self.protocol == "dxl2" else 2
-        found: set[int] = set()
-        t_end = time.monotonic() + wait_ms / 1000.0
-        while time.monotonic() < t_end:
-            self.port.setPacketTimeoutMillis(max(1.0, (t_end - time.monotonic()) * 1000.0))
-            rx = self.ph.rxPacket(self.port, False) if self.protocol == "dxl2" else self.ph.rxPacket(self.port)
-            pkt_in, comm = rx
-            self.port.is_using = False
-            if self.ok(comm) and len(pkt_in) > id_at:
-                found.add(int(pkt_in[id_at]))
-            elif not pkt_in:
-                break  # nothing more within the wait
-        return sorted(found)
-
-    def ping_each(self, ids: range, timeout_ms: float) -> list[int]:
-        """Ids that answer a read of their Model Number, asked one by one with a short timeout."""
-        model = self.reg("MODEL_NUMBER")
-        found = []
-        for sid in ids:
-            self._prep()
-            if not self.ok(self.ph.readTx(self.port, sid, *model.value)):
-                continue
-            self.port.setPacketTimeoutMillis(timeout_ms)
-            _, comm = self.ph.rxPacket(self.port, False) if self.protocol == "dxl2" else self.ph.rxPacket(self.port)
-            self.port.is_using = False
-            if self.ok(comm):
-                found.append(sid)
-        return found
+            link.write(sid, lock, was)
+    if err:
+        raise BackendError(f"servo id {sid}: {reg.name} refused value {value} (error byte 0x{err:02X})")
 
 
-def baud_register_value(protocol: str, baud: int) -> int:
+def broadcast_ping(link: Transport, max_id: int = 252) -> list[int]:
+    """Ids that answer one broadcast PING, in one round trip (each servo answers in its own time slot).
+
+    Waits for ids up to ``max_id``: 3 ms per id on Dynamixel 2.0 (as the SDK allows), 1 ms elsewhere, + 50 ms.
+    """
+    _fresh(link)
+    if link.protocol is DXL2:
+        pkt = [0] * 10
+        pkt[4], pkt[5], pkt[6], pkt[7] = 0xFE, 3, 0, 1  # id, length, instruction PING
+        wait_ms = 3.0 * max_id + 50.0
+    else:
+        pkt = [0] * 6
+        pkt[2], pkt[3], pkt[4] = 0xFE, 2, 1
+        wait_ms = 1.0 * max_id + 50.0
+    if not link.ok(link.ph.txPacket(link.port, pkt)):
+        raise BackendError(f"cannot write to {link.port_name}")
+    id_at = link.wire.status_layout[0]
+    found: set[int] = set()
+    t_end = time.monotonic() + wait_ms / 1000.0
+    while time.monotonic() < t_end:
+        link.port.setPacketTimeoutMillis(max(1.0, (t_end - time.monotonic()) * 1000.0))
+        pkt_in, ok = link.rx_packet()
+        link.port.is_using = False
+        if ok and len(pkt_in) > id_at:
+            found.add(int(pkt_in[id_at]))
+        elif not pkt_in:
+            break  # nothing more within the wait
+    return sorted(found)
+
+
+def ping_each(link: Transport, ids: range, timeout_ms: float) -> list[int]:
+    """Ids that answer a read of their Model Number, asked one by one with a short timeout."""
+    model = link.wire.reg("MODEL_NUMBER")
+    found = []
+    for sid in ids:
+        _fresh(link)
+        if not link.ok(link.ph.readTx(link.port, sid, *model.value)):
+            continue
+        link.port.setPacketTimeoutMillis(timeout_ms)
+        _, ok = link.rx_packet()
+        link.port.is_using = False
+        if ok:
+            found.append(sid)
+    return found
+
+
+def _fresh(link: Transport) -> None:
+    """Before a request whose answers are not matched one to one (pings): the input emptied."""
+    link.prep()
+    link.port.ser.reset_input_buffer()
+
+
+def baud_register_value(protocol: ServoProtocol, baud: int) -> int:
     """The Baud Rate register value that selects ``baud``."""
-    from robogest.backends.dynamixel_tables import X_BAUDRATES
-    from robogest.backends.feetech_tables import FT_BAUDRATES
+    from robogest.backends.servos.dynamixel.tables import X_BAUDRATES
+    from robogest.backends.servos.feetech.tables import FT_BAUDRATES
 
-    if protocol == "dxl1":
+    if protocol is DXL1:
         return round(2_000_000 / baud - 1)  # AX/MX: baud = 2 Mbps / (value + 1)
-    table = X_BAUDRATES if protocol == "dxl2" else FT_BAUDRATES
+    table = X_BAUDRATES if protocol is DXL2 else FT_BAUDRATES
     value = next((v for v, b in table.items() if b == baud), None)
     if value is None:
         rates = ", ".join(map(str, table.values()))
-        raise InputError(f"{protocol} servos cannot be set to {baud} baud; one of {rates}")
+        raise InputError(f"{protocol.cli_name} servos cannot be set to {baud} baud; one of {rates}")
     return value
 
 
-def set_baud(port: str, protocol: str, sid: int, old_baud: int, new_baud: int) -> None:
+def set_baud(port: str, protocol: ServoProtocol, sid: int, old_baud: int, new_baud: int) -> None:
     """Move one servo from ``old_baud`` to ``new_baud`` (torque off; a Feetech Lock is restored at the new rate)."""
     value = baud_register_value(protocol, new_baud)
-    with ServoLink(port, protocol, old_baud) as link:
-        link.write(sid, link.reg("TORQUE_ENABLE"), 0)
-        lock = link.reg("LOCK") if "LOCK" in link.registers().__members__ else None
-        was = link.read(sid, lock) if lock is not None and protocol in ("sts", "scs") else 0
-        if was:
+    with Transport(port, protocol, old_baud) as link:
+        link.write(sid, link.wire.reg("TORQUE_ENABLE"), 0)
+        lock = link.wire.reg("LOCK") if protocol.family == "feetech" else None
+        was = link.read(sid, lock) if lock is not None else 0
+        if was and lock is not None:
             link.write(sid, lock, 0)
         try:
-            err = link.write(sid, link.reg("BAUD_RATE"), value, attempts=1)
+            err = link.write(sid, link.wire.reg("BAUD_RATE"), value, attempts=1)
         except BackendError:  # no reply at the old rate: it may already come at the new one (checked below)
             err = 0
         if err:
@@ -213,8 +137,8 @@ def set_baud(port: str, protocol: str, sid: int, old_baud: int, new_baud: int) -
                 "locked (Dynamixel AX/MX Lock = 1) keeps its settings until it is powered off and on again"
             )
     time.sleep(0.05)
-    with ServoLink(port, protocol, new_baud) as link:
-        link.read(sid, link.reg("MODEL_NUMBER"))  # answers at the new rate, or raises naming the servo
+    with Transport(port, protocol, new_baud) as link:
+        link.read(sid, link.wire.reg("MODEL_NUMBER"))  # answers at the new rate, or raises naming the servo
         if was and lock is not None:
             link.write(sid, lock, was)
 
@@ -223,7 +147,7 @@ def set_baud(port: str, protocol: str, sid: int, old_baud: int, new_baud: int) -
 class FoundServo:
     """One servo that answered a scan. Limits in ticks, as stored in the servo."""
 
-    protocol: str
+    protocol: ServoProtocol
     baud: int
     id: int
     model_number: int
@@ -235,28 +159,29 @@ class FoundServo:
 
     def line(self) -> str:
         return (
-            f"{self.protocol:4s} {self.baud:8d} baud  id {self.id:3d}  {self.model} ({self.model_number})  "
+            f"{self.protocol.cli_name:4s} {self.baud:8d} baud  id {self.id:3d}  {self.model} ({self.model_number})  "
             f"firmware {self.firmware}  return delay {self.return_delay_us:.0f} us  "
             f"limits [{self.min_position_tick}, {self.max_position_tick}] ticks"
         )
 
     def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        return {**asdict(self), "protocol": self.protocol.cli_name}
 
 
-def describe(link: ServoLink, sid: int) -> FoundServo:
+def describe(link: Transport, sid: int) -> FoundServo:
     """Read what a scan reports about one servo."""
-    number = link.read(sid, link.reg("MODEL_NUMBER"))
-    fw = link.read(sid, link.reg("FIRMWARE_VERSION", "FIRMWARE_MAJOR_VERSION"))
-    rdt = link.read(sid, link.reg("RETURN_DELAY_TIME"))
-    lo = link.read(sid, link.reg("MIN_POSITION_LIMIT", "CW_ANGLE_LIMIT"))
-    hi = link.read(sid, link.reg("MAX_POSITION_LIMIT", "CCW_ANGLE_LIMIT"))
-    return FoundServo(link.protocol, link.baud, sid, number, link.model_name(number), fw, 2.0 * rdt, lo, hi)
+    number = link.read(sid, link.wire.reg("MODEL_NUMBER"))
+    fw = link.read(sid, link.wire.reg("FIRMWARE_VERSION", "FIRMWARE_MAJOR_VERSION"))
+    rdt = link.read(sid, link.wire.reg("RETURN_DELAY_TIME"))
+    lo = link.read(sid, link.wire.reg("MIN_POSITION_LIMIT", "CW_ANGLE_LIMIT"))
+    hi = link.read(sid, link.wire.reg("MAX_POSITION_LIMIT", "CCW_ANGLE_LIMIT"))
+    model = link.wire.model_named(number)
+    return FoundServo(link.protocol, link.baudrate, sid, number, model, fw, 2.0 * rdt, lo, hi)
 
 
 def scan(
     port: str,
-    protocols: list[str] | None = None,
+    protocols: list[ServoProtocol] | None = None,
     bauds: list[int] | None = None,
     *,
     max_id: int = 252,
@@ -281,16 +206,16 @@ def scan(
         if found and not all_protocols and proto != found[-1].protocol:
             break  # every baud of the protocol that answered is done; one bus rarely mixes protocols
         if progress:
-            progress(k, len(tries), f"{proto} at {baud} baud")
+            progress(k, len(tries), f"{proto.cli_name} at {baud} baud")
         try:
-            link = ServoLink(port, proto, baud)
+            link = Transport(port, proto, baud)
         except InputError:
             continue  # a rate this SDK cannot set
         with link:
-            if per_id or proto == "dxl1":
-                ids = link.ping_each(range(0, max_id + 1), max(timeout_ms, latency_ms + 4.0))
+            if per_id or proto is DXL1:
+                ids = ping_each(link, range(0, max_id + 1), max(timeout_ms, latency_ms + 4.0))
             else:
-                ids = link.broadcast_ping(max_id)
+                ids = broadcast_ping(link, max_id)
             for sid in ids:
                 with contextlib.suppress(BackendError):
                     found.append(describe(link, sid))
@@ -360,14 +285,14 @@ def scan_robot(
     """What answers on ``port`` at ``robot``'s bus protocol and each of ``bauds``: a :func:`scan`, then each id a
     joint expects that the scan did not hear is asked once more on its own (a broadcast reply lost on a busy bus
     would otherwise read as a missing servo)."""
-    proto = protocol_name(robot.bus.family, robot.bus.protocol)
+    proto = ServoProtocol.of_bus(robot.bus.family, robot.bus.protocol)
     found = scan(port, [proto], bauds, max_id=max_id, per_id=per_id, progress=progress)
     heard = {f.id for f in found}
     for baud in bauds:
         missing = sorted({s.id for s in robot.bus.servos.values()} - heard)
         if not missing:
             break
-        with ServoLink(port, proto, baud) as link:
+        with Transport(port, proto, baud) as link:
             for sid in missing:
                 with contextlib.suppress(BackendError):
                     found.append(describe(link, sid))
