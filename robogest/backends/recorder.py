@@ -1,4 +1,5 @@
-"""Video of a simulation: a frame rendered whenever simulated time reaches the next frame time, encoded on a second
+"""What watches a simulation: the interactive viewer (:class:`ViewerObserver`) and its video, a frame rendered
+whenever simulated time reaches the next frame time, encoded on a second
 thread.
 
 Rendering stays in the simulation's thread (MuJoCo's GL context is current there); H.264 encoding (colour
@@ -19,7 +20,7 @@ import mujoco
 import numpy as np
 
 from robogest.backends import render as _render
-from robogest.errors import RobogestError
+from robogest.errors import MissingDependencyError, RobogestError
 from robogest.media.video import VideoWriter
 from robogest.robot.config import RobotConfig
 
@@ -106,6 +107,8 @@ class VideoRecorder:
         if data.time < self.next_t - self.half_step:
             return
         self._raise_if_failed()
+        if self.renderer is None:
+            raise RobogestError("the video recorder was released; no more frames can be rendered")
         self.stats.frame_times_s.append(float(data.time))
         t0 = time.perf_counter()
         self.renderer.update_scene(data, camera=self.cam)
@@ -159,3 +162,21 @@ class VideoRecorder:
         if self.renderer is not None:
             self.renderer.close()
             self.renderer = None
+
+
+class ViewerObserver:
+    """The interactive viewer, synced at about 60 Hz of simulated time; closing it only stops the display."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        from mujoco import viewer as mj_viewer
+
+        try:
+            self.viewer = mj_viewer.launch_passive(model, data)
+        except Exception as e:
+            raise MissingDependencyError(f"cannot open the MuJoCo viewer ({e}); is a display available?") from None
+        self.next_t = 0.0
+
+    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        if data.time >= self.next_t and self.viewer.is_running():
+            self.viewer.sync()
+            self.next_t = data.time + 1.0 / 60.0

@@ -173,7 +173,8 @@ def upper_body_points(model: mujoco.MjModel, data: mujoco.MjData, robot: RobotCo
     """World positions ``(P, 3)`` of the robot's retargeting sites in ``data`` (head, shoulders, elbows, wrists:
     the upper body a gesture moves), metres."""
     ids = sorted({mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, s) for v in robot.retarget for s in v.robot})
-    return data.site_xpos[[i for i in ids if i >= 0]].copy()
+    points: np.ndarray = data.site_xpos[[i for i in ids if i >= 0]].copy()
+    return points
 
 
 def framing_camera(
@@ -209,7 +210,8 @@ def video_camera(
 def render_frame(renderer: mujoco.Renderer, data: mujoco.MjData, camera: int | mujoco.MjvCamera) -> np.ndarray:
     """One RGB frame ``(H, W, 3)`` uint8 of the current state."""
     renderer.update_scene(data, camera=camera)
-    return renderer.render()
+    rgb: np.ndarray = renderer.render()
+    return rgb
 
 
 def render_png(

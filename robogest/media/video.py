@@ -11,11 +11,15 @@ import os
 import tempfile
 from fractions import Fraction
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robogest.errors import InputError, RobogestError
 from robogest.fileio import check_output_path, publish, temp_prefix, write_error
+
+if TYPE_CHECKING:
+    from av.audio.stream import AudioStream
 
 _AAC_RATES = (96000, 88200, 64000, 48000, 44100, 32000, 24000, 22050, 16000, 12000, 11025, 8000, 7350)
 
@@ -78,7 +82,7 @@ class VideoWriter:
             self._video.width, self._video.height = self.width, self.height
             self._video.pix_fmt = "yuv420p"
             self._video.options = {"crf": "23", "preset": "veryfast"}
-            self._audio_stream = None
+            self._audio_stream: AudioStream | None = None
             self._audio: np.ndarray | None = None
             self._audio_pos = 0
             if audio is not None and len(audio):
@@ -179,8 +183,9 @@ class VideoWriter:
         if self._dead is None:
             self._dead = error or RobogestError(f"{self.path}: video writing was stopped; nothing was written")
         for part in (getattr(self, "_container", None), getattr(self, "_file", None)):
-            with contextlib.suppress(Exception):
-                part.close()
+            if part is not None:
+                with contextlib.suppress(Exception):
+                    part.close()
         self._tmp.unlink(missing_ok=True)
 
     def __enter__(self) -> VideoWriter:
