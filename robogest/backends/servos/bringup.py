@@ -18,7 +18,11 @@ from typing import Any
 
 from robogest.backends.servos.protocol import PROTOCOL_NAMES, ServoProtocol
 from robogest.backends.servos.transport import Transport
-from robogest.errors import BackendError, InputError
+from robogest.errors import BackendError, ConfigError, InputError
+from robogest.robot.config import BusConfig, RobotConfig
+
+#: ``progress(done, total, what)``: called before each try of a scan.
+Progress = Callable[[int, int, str], None]
 
 DXL2, DXL1, STS, SCS = ServoProtocol.DXL2, ServoProtocol.DXL1, ServoProtocol.STS, ServoProtocol.SCS
 #: Protocols in the order they are tried: the most common first, Protocol 1.0 (no usable broadcast ping) last.
@@ -187,7 +191,7 @@ def scan(
     max_id: int = 252,
     per_id: bool = False,
     timeout_ms: float = 10.0,
-    progress: Callable[[int, int, str], None] | None = None,
+    progress: Progress | None = None,
     all_protocols: bool = False,
 ) -> list[FoundServo]:
     """Every servo that answers on ``port``, trying each protocol at each baud rate (common ones first).
@@ -275,21 +279,22 @@ class JointServo:
 
 def scan_robot(
     port: str,
-    robot: Any,
+    robot: RobotConfig,
     bauds: list[int],
     *,
     max_id: int = 252,
     per_id: bool = False,
-    progress: Callable[[int, int, str], None] | None = None,
+    progress: Progress | None = None,
 ) -> list[FoundServo]:
     """What answers on ``port`` at ``robot``'s bus protocol and each of ``bauds``: a :func:`scan`, then each id a
     joint expects that the scan did not hear is asked once more on its own (a broadcast reply lost on a busy bus
     would otherwise read as a missing servo)."""
-    proto = ServoProtocol.of_bus(robot.bus.family, robot.bus.protocol)
+    bus = _bus_of(robot)
+    proto = ServoProtocol.of_bus(bus.family, bus.protocol)
     found = scan(port, [proto], bauds, max_id=max_id, per_id=per_id, progress=progress)
     heard = {f.id for f in found}
     for baud in bauds:
-        missing = sorted({s.id for s in robot.bus.servos.values()} - heard)
+        missing = sorted({s.id for s in bus.servos.values()} - heard)
         if not missing:
             break
         with Transport(port, proto, baud) as link:
@@ -300,22 +305,37 @@ def scan_robot(
     return found
 
 
-def match_robot(robot: Any, found: list[FoundServo]) -> list[JointServo]:
+def _bus_of(robot: RobotConfig) -> BusConfig:
+    if robot.bus is None:
+        raise ConfigError(f"{robot.path or robot.name}: no bus section, so no servos to look for; add one")
+    return robot.bus
+
+
+def model_numbers(bus: BusConfig) -> dict[str, int | None]:
+    """Per joint of ``bus.servos``, the Model Number its YAML model has; None for a model the family's backend does not
+    know (`robots validate` reports it; callers compare by name instead) or a backend without a model table."""
+    from robogest.backends.base import get_backend_factory
+
+    lookup = getattr(get_backend_factory(bus.family), "lookup_model", None)
+    out: dict[str, int | None] = {}
+    for joint, s in bus.servos.items():
+        try:
+            out[joint] = int(lookup(s.model, bus.protocol).number) if lookup is not None else None
+        except ConfigError:
+            out[joint] = None
+    return out
+
+
+def match_robot(robot: RobotConfig, found: list[FoundServo]) -> list[JointServo]:
     """Per joint of ``robot`` (its ``bus.servos``, YAML order), the expected id and model against ``found``; then
     every id that answered but no joint has. A model matches by its model number (names differ in spelling)."""
-    from robogest.backends.base import get_backend_factory
-    from robogest.errors import ConfigError
-
-    bus = robot.bus
-    lookup = getattr(get_backend_factory(bus.family), "lookup_model", None)
+    bus = _bus_of(robot)
+    numbers = model_numbers(bus)
     by_id = {f.id: f for f in found}
     rows = []
     for joint in robot.joint_names:
         s = bus.servos[joint]
-        try:
-            number = lookup(s.model, bus.protocol).number if lookup is not None else None
-        except ConfigError:
-            number = None  # a model the backend does not know: `robots validate` says so; compare by name
+        number = numbers[joint]
         f = by_id.get(s.id)
         ok = f is not None and (f.model_number == number if number is not None else f.model == s.model)
         rows.append(JointServo(joint, s.id, s.model, None if f is None else f.model, ok))

@@ -16,12 +16,19 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Any
 
-from robogest.backends.servos.bringup import COMMON_BAUDS, FoundServo, baud_register_value, scan
+from robogest.backends.servos.bringup import (
+    COMMON_BAUDS,
+    FoundServo,
+    Progress,
+    baud_register_value,
+    model_numbers,
+    scan,
+)
 from robogest.backends.servos.protocol import ServoProtocol
 from robogest.backends.servos.transport import Transport
 from robogest.errors import BackendError, ConfigError, InputError
+from robogest.robot.config import RobotConfig
 
 Ask = Callable[[str], object]
 Say = Callable[[str], None]
@@ -100,28 +107,24 @@ class Target:
     baud: int
 
 
-def targets(robot: Any, joints: list[str] | None = None) -> list[Target]:
+def targets(robot: RobotConfig, joints: list[str] | None = None) -> list[Target]:
     """The servos to set up, in the YAML's joint order (``joints``: only these); InputError for a joint the robot
     lacks or a baud rate its servos cannot be set to."""
-    from robogest.backends.base import get_backend_factory
-
     bus = robot.bus
+    if bus is None:
+        raise ConfigError(f"{robot.path or robot.name}: no bus section, so no servos to set up; add one")
     proto = ServoProtocol.of_bus(bus.family, bus.protocol)
     baud_register_value(proto, bus.baudrate)  # raises before anything is written
     unknown = [j for j in joints or [] if j not in robot.joint_names]
     if unknown:
         raise InputError(f"robot {robot.name} has no joints {unknown}; its joints: {', '.join(robot.joint_names)}")
-    lookup = getattr(get_backend_factory(bus.family), "lookup_model", None)
+    numbers = model_numbers(bus)  # None: compared by name; `robots validate` reports the unknown model
     out = []
     for joint in robot.joint_names:
         if joints and joint not in joints:
             continue
         s = bus.servos[joint]
-        try:
-            number = lookup(s.model, bus.protocol).number if lookup else None
-        except ConfigError:
-            number = None  # compared by name; `robots validate` reports the unknown model
-        out.append(Target(joint, s.id, s.model, number, bus.baudrate))
+        out.append(Target(joint, s.id, s.model, numbers[joint], bus.baudrate))
     return out
 
 
@@ -148,7 +151,9 @@ def interrupted(message: str, signum: int = signal.SIGINT) -> KeyboardInterrupt:
     return e
 
 
-def lone_servo(port: str, proto: ServoProtocol, target: Target, max_id: int, progress: Any = None) -> FoundServo | str:
+def lone_servo(
+    port: str, proto: ServoProtocol, target: Target, max_id: int, progress: Progress | None = None
+) -> FoundServo | str:
     """The one servo on the bus at any id and baud rate, or why not (a line for the user): none answers, more than
     one does, or it is another model than the YAML's."""
     found = scan(port, [proto], list(dict.fromkeys([target.baud, *COMMON_BAUDS[proto]])), max_id=max_id,
@@ -219,18 +224,19 @@ def where_now(port: str, proto: ServoProtocol, f: FoundServo, target: Target) ->
 
 def setup_servos(
     port: str,
-    robot: Any,
+    robot: RobotConfig,
     ask: Ask,
     say: Say,
     *,
     joints: list[str] | None = None,
     max_id: int = 252,
-    progress: Any = None,
+    progress: Progress | None = None,
 ) -> list[str]:
     """Guide the user through connecting each joint's servo alone and write its id and baud rate (module docstring).
     Returns the joints set up. A Ctrl-C leaves the servo being written old or new, never half, and says which."""
+    todo = targets(robot, joints)  # raises for a robot without a bus section
+    assert robot.bus is not None
     proto = ServoProtocol.of_bus(robot.bus.family, robot.bus.protocol)
-    todo = targets(robot, joints)
     done: list[str] = []
     for t in todo:
         rest = ", ".join(x.joint for x in todo[len(done) :])
