@@ -121,6 +121,7 @@ class ServoBusIO(Backend):
     def _init_state(self) -> None:
         """What a session learns while it runs: counters, retry budget, the last readings and goals."""
         self.transport: Transport | None = None  # once connected
+        self._stale_before = (0, 0)  # stale replies and bytes of the connections before this one
         self.is_connected = False
         self.port_lost = False
         self.torque_enabled = False
@@ -153,13 +154,13 @@ class ServoBusIO(Backend):
 
     @property
     def stale_replies(self) -> int:
-        """Status packets discarded as late answers to earlier requests (this connection)."""
-        return self.transport.stale_replies if self.transport is not None else 0
+        """Status packets discarded as late answers to earlier requests (every connection of this backend)."""
+        return self._stale_before[0] + (self.transport.stale_replies if self.transport is not None else 0)
 
     @property
     def stale_bytes(self) -> int:
-        """Bytes of late replies dropped before a request (this connection)."""
-        return self.transport.stale_bytes if self.transport is not None else 0
+        """Bytes of late replies dropped before a request (every connection of this backend)."""
+        return self._stale_before[1] + (self.transport.stale_bytes if self.transport is not None else 0)
 
     @property
     def lost_after_ticks(self) -> int:
@@ -210,6 +211,8 @@ class ServoBusIO(Backend):
 
     # --- the port --------------------------------------------------------------------------------
     def _open(self) -> None:
+        self._stale_before = (self.stale_replies, self.stale_bytes)
+        self.transport = None
         self.transport = Transport(
             self.port_name, self.protocol, self.baudrate, late_reply_window_s=self.late_reply_window_s,
             who=self._who, events=self.events,
