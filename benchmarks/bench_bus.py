@@ -14,8 +14,8 @@ import time
 import dynamixel_sdk as dxl
 import numpy as np
 
-import robogest.backends.dynamixel
-import robogest.backends.feetech  # noqa: F401
+import robogest.backends.servos.dynamixel
+import robogest.backends.servos.feetech  # noqa: F401
 from robogest.backends.base import get_backend_factory
 from robogest.virtualbus import VirtualBus
 from robogest.virtualbus.testing import make_robot

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 
-import robogest.backends.feetech  # noqa: F401 - registers "feetech"
+import robogest.backends.servos.feetech  # noqa: F401 - registers "feetech"
 from robogest.backends.base import get_backend_factory
 from robogest.backends.player import play
 from robogest.virtualbus import ThermalModel, VirtualBus

@@ -15,8 +15,8 @@ import time
 
 import numpy as np
 
-import robogest.backends.dynamixel
-import robogest.backends.feetech  # noqa: F401 - registers "feetech"
+import robogest.backends.servos.dynamixel
+import robogest.backends.servos.feetech  # noqa: F401 - registers "feetech"
 from robogest.backends.base import get_backend_factory
 from robogest.backends.player import play
 from robogest.errors import BackendError

@@ -101,7 +101,7 @@ def test_read_npz_refuses_pickles_and_caps_sizes(tmp_path):
 
 def test_video_writer_full_disk_is_one_line_and_leaves_nothing(full_disk):
     pytest.importorskip("av")
-    from robogest.backends.render import VideoWriter
+    from robogest.media.video import VideoWriter
 
     msg = r"v\.mp4: cannot write \(No space left on device\)"
     with pytest.raises(RobogestError, match=msg), VideoWriter(full_disk / "v.mp4", 64, 64, 25) as w:

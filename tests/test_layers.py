@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1] / "robogest"
 LAYERS: list[set[str]] = [
     {"errors", "_lazy"},
     {"fileio", "registry", "extras"},
-    {"robot", "_version"},  # schema, registry, the MJCF loader, the YAML writer, model/YAML problems
+    {"robot", "_version", "media"},  # schema, registry, MJCF loader, YAML writer, problems; MP4/PNG/audio out
     {"speech", "motion"},
     {"text"},
     {"data"},

@@ -189,8 +189,10 @@ class Backend(ABC):
         self._send_goal(q)
         v_before = self.last_goal_v_rad_s
         self.last_goal_v_rad_s = (q - ref) / self.control_period_s if self.last_goal_rad is not None else None
-        ok = v_before is not None and self.last_goal_v_rad_s is not None
-        self.last_goal_a_rad_s2 = (self.last_goal_v_rad_s - v_before) / self.control_period_s if ok else None
+        v_now = self.last_goal_v_rad_s
+        self.last_goal_a_rad_s2 = None
+        if v_before is not None and v_now is not None:
+            self.last_goal_a_rad_s2 = (v_now - v_before) / self.control_period_s
         self.last_goal_rad = q.copy()
         self.last_goal_monotonic_s = time.monotonic()
 

@@ -333,7 +333,7 @@ class ControlLoop:
         if self._started:
             return self
         if self.backend.realtime:  # hardware: refuse a robot file whose limits the servos or the body cannot keep
-            from robogest.backends.servo_check import require_hardware_safe
+            from robogest.backends.servos.check import require_hardware_safe
 
             require_hardware_safe(self.robot)
         set_rate = getattr(self.backend, "set_control_rate", None)

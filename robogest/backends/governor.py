@@ -1,7 +1,7 @@
 """Health governor: gestures get smaller, slower and rarer as the servos heat up or strain.
 
 The servo backends read temperature and load at a low rate during playback (round robin, see
-:meth:`~robogest.backends.servo_common.ServoBackend.check_health`) and feed them here; the player passes every
+:meth:`~robogest.backends.servos.bus.ServoBackend.check_health`) and feed them here; the player passes every
 target through :meth:`Governor.shape`. Above the hard limits the backend still stops the motion, goes to rest
 and turns torque off; the governor acts below them, so a long monologue can finish instead of being cut off.
 
@@ -92,9 +92,9 @@ class Governor:
 
     def shape(self, q_target_rad: np.ndarray, rest_q_rad: np.ndarray, now_s: float | None = None) -> np.ndarray:
         """``rest + a * (q_target - rest)``, ``(J,)`` radians; see the module docstring for how ``a`` moves."""
-        q = np.asarray(q_target_rad, float)
+        q: np.ndarray = np.array(q_target_rad, dtype=float)  # a copy: the caller may keep its target
         if not self.enabled:
-            return q.copy()
+            return q
         c = self.config
         now = time.monotonic() if now_s is None else now_s
         if self._last_shape_s is not None and now - self._last_shape_s > c.new_playback_after_s:
@@ -118,7 +118,8 @@ class Governor:
             goal = 0.0  # during a rest (invisible there) and the hold after it
         step = dt * min(c.max_rate_per_s, c.extra_speed_rad_s / max(dev, 1e-9))
         self.factor = float(np.clip(goal, self.factor - step, self.factor + step))
-        return rest + self.factor * (q - rest)
+        shaped: np.ndarray = rest + self.factor * (q - rest)
+        return shaped
 
     def reset(self) -> None:
         """A new playback starts at full amplitude (the first target is where the robot already is)."""

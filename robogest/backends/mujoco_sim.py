@@ -16,16 +16,21 @@ from robogest.backends import render as _render  # isort: skip
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from robogest.backends.base import Backend, register_backend
+from robogest.backends.sim_report import SimReport, tracking_report
 from robogest.errors import BackendError, ConfigError, InputError, MissingDependencyError, SafetyError
 from robogest.robot.config import RobotConfig
 from robogest.trajectory.types import Trajectory
+
+if TYPE_CHECKING:
+    from robogest.backends.recorder import VideoRecorder, ViewerObserver
 
 #: Name of the keyframe every robot model defines at its rest pose.
 HOME_KEY = "home"
@@ -209,12 +214,14 @@ class MujocoBackend(Backend):
 
     def read_positions(self) -> np.ndarray:
         sim, data = self._need()
-        return data.qpos[sim.qpos_idx].copy()
+        q_rad: np.ndarray = data.qpos[sim.qpos_idx].copy()
+        return q_rad
 
     def read_velocities(self) -> np.ndarray:
         """Present joint velocities ``(J,)``, rad/s."""
         sim, data = self._need()
-        return data.qvel[sim.dof_idx].copy()
+        v_rad_s: np.ndarray = data.qvel[sim.dof_idx].copy()
+        return v_rad_s
 
     def set_torque(self, on: bool) -> None:
         """Torque off disables every actuator: the arms then fall under gravity, as on hardware."""
@@ -295,65 +302,6 @@ class MujocoBackend(Backend):
         }
 
 
-@dataclass
-class SimReport:
-    """How the simulated servos followed a trajectory.
-
-    Attributes
-    ----------
-    t_s : ndarray [shape=(T,)], seconds
-        The trajectory's sample times.
-    q_cmd_rad, q_achieved_rad : ndarray [shape=(T, J)], radians
-        Commanded and simulated joint angles at those times (trajectory joint order).
-    joint_names : list of str, length J
-    tracking_rms_deg : ndarray [shape=(J,)], degrees
-        RMS of achieved - commanded per joint.
-    tracking_rms_deg_overall : float, degrees
-        RMS over every joint and sample.
-    max_abs_error_deg : float, degrees
-        Largest absolute tracking error.
-    self_collision_s : float, seconds
-        Simulated time during which two robot parts touched.
-    video_path : Path or None
-    n_video_frames : int
-    render_s_per_frame : float, seconds
-        Mean rendering (not encoding) time per video frame; 0 without video.
-    wall_s : float, seconds
-        Wall-clock time of the whole run.
-    extra : dict
-        ``playback``: the player's report; with a video, ``video`` (:class:`~robogest.backends.video.VideoStats`,
-        where its time went) and ``video_settings`` (size, options, renderer).
-    """
-
-    t_s: np.ndarray
-    q_cmd_rad: np.ndarray
-    q_achieved_rad: np.ndarray
-    joint_names: list[str]
-    tracking_rms_deg: np.ndarray
-    tracking_rms_deg_overall: float
-    max_abs_error_deg: float
-    self_collision_s: float = 0.0
-    video_path: Path | None = None
-    n_video_frames: int = 0
-    render_s_per_frame: float = 0.0
-    wall_s: float = 0.0
-    extra: dict = field(default_factory=dict)
-
-    def summary(self) -> str:
-        """A few human-readable lines."""
-        head = f"tracking RMS {self.tracking_rms_deg_overall:.2f} deg overall"
-        head += f", max |error| {self.max_abs_error_deg:.2f} deg"
-        if self.joint_names:
-            w = int(np.argmax(self.tracking_rms_deg))
-            head += f", worst joint {self.joint_names[w]} ({self.tracking_rms_deg[w]:.2f} deg RMS)"
-        lines = [head, f"self-collision {self.self_collision_s:.2f} s"]
-        if self.video_path is not None:
-            lines.append(
-                f"video {self.video_path} ({self.n_video_frames} frames, {1000 * self.render_s_per_frame:.0f} ms/frame)"
-            )
-        return "\n".join(lines)
-
-
 def _joint_order(trajectory: Trajectory, robot: RobotConfig) -> np.ndarray:
     """Index array mapping the trajectory's columns into the robot's joint order."""
     if list(trajectory.joint_names) == robot.joint_names:
@@ -378,25 +326,10 @@ def _for_robot(trajectory: Trajectory, robot: RobotConfig, hold_until_s: float) 
         q = np.vstack([q, np.repeat(q[-1:], extra, axis=0)])
     silent = np.zeros(len(t), dtype=bool)
     silent[: trajectory.n_frames] = trajectory.silent[: trajectory.n_frames]
-    return Trajectory.for_robot(robot, q, t_s=t, silent=silent, audio_path=trajectory.audio_path)
-
-
-class _ViewerObserver:
-    """The interactive viewer, synced at about 60 Hz of simulated time; closing it only stops the display."""
-
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        from mujoco import viewer as mj_viewer
-
-        try:
-            self.viewer = mj_viewer.launch_passive(model, data)
-        except Exception as e:
-            raise MissingDependencyError(f"cannot open the MuJoCo viewer ({e}); is a display available?") from None
-        self.next_t = 0.0
-
-    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        if data.time >= self.next_t and self.viewer.is_running():
-            self.viewer.sync()
-            self.next_t = data.time + 1.0 / 60.0
+    out = Trajectory.for_robot(robot, q, t_s=t, silent=silent, audio_path=trajectory.audio_path)
+    if not np.all(np.isfinite(out.q_rad)):
+        raise SafetyError("trajectory contains NaN/inf commands; refusing to simulate")
+    return out
 
 
 def simulate(
@@ -433,8 +366,7 @@ def simulate(
     audio_sr : int
         Audio sample rate, Hz.
     width, height : int, optional
-        Video frame size, pixels (even); default 1280x720 with a GPU renderer, 640x360 with a software one
-        (:func:`~robogest.backends.render.video_settings`, which also picks cheaper render options there).
+        Video frame size, pixels (even); default 1280x720 on a GPU, 640x360 in software (:func:`video_settings`).
     video_fps : int
         Video frame rate.
     realtime : bool
@@ -460,61 +392,41 @@ def simulate(
         )
     audio_s = len(audio) / float(audio_sr) if video_path is not None and audio is not None and len(audio) else 0.0
     traj = _for_robot(trajectory, robot, audio_s)
-    if not np.all(np.isfinite(traj.q_rad)):
-        raise SafetyError("trajectory contains NaN/inf commands; refusing to simulate")
-
     backend = MujocoBackend(robot, start_q_rad=traj.q_rad[0], count_contacts=True, pace=realtime or view)
     backend.connect()
     model, data = backend._need()[0].model, backend.data
     video = viewer = None
     out_path = None
     try:
-        if video_path is not None:
-            from robogest.backends.video import VideoRecorder
+        from robogest.backends.recorder import VideoRecorder, ViewerObserver
 
+        if video_path is not None:
             settings = _render.video_settings(width, height)
             video = VideoRecorder(model, data, robot, video_path, settings, video_fps, audio, audio_sr)
             backend.observers.append(video)
         if view:
-            viewer = _ViewerObserver(model, data)
-            backend.observers.append(viewer)
+            backend.observers.append(viewer := ViewerObserver(model, data))
         rep = play(traj, backend, rate_hz=rate_hz, progress=progress)
         if video is not None:
             out_path = video.close()
     finally:
-        if video is not None:
-            if out_path is None:
-                video.abort()
-            video.release()
-            backend.observers.remove(video)
-        if viewer is not None:
-            viewer.viewer.close()
-        backend.shutdown()
+        _detach(backend, video, viewer, out_path)
+    return tracking_report(trajectory, traj, backend.log, rep, backend.self_collision_s, video, out_path, t_wall0)
 
-    log = backend.log
-    t0 = rep.ramp_in_s  # simulated time at which trajectory time 0 was played (0: the sim starts there)
-    n = trajectory.n_frames
-    q_cmd = traj.q_rad[:n]
-    q_ach = np.stack([np.interp(traj.t_s[:n] + t0, log["t_s"], log["q_rad"][:, j]) for j in range(q_cmd.shape[1])], 1)
-    err_deg = np.degrees(q_ach - q_cmd)
-    rms = np.sqrt(np.mean(err_deg**2, axis=0)) if len(err_deg) else np.zeros(len(robot.joints))
-    n_frames = video.n_frames if video is not None else 0
-    video_extra = {"video": video.stats, "video_settings": video.settings} if video is not None else {}
-    return SimReport(
-        t_s=traj.t_s[:n].copy(),
-        q_cmd_rad=q_cmd,
-        q_achieved_rad=q_ach,
-        joint_names=robot.joint_names,
-        tracking_rms_deg=rms,
-        tracking_rms_deg_overall=float(np.sqrt(np.mean(err_deg**2))) if err_deg.size else 0.0,
-        max_abs_error_deg=float(np.max(np.abs(err_deg))) if err_deg.size else 0.0,
-        self_collision_s=backend.self_collision_s,
-        video_path=out_path,
-        n_video_frames=n_frames,
-        render_s_per_frame=(video.stats.scene_s + video.stats.render_s) / n_frames if n_frames else 0.0,
-        wall_s=time.perf_counter() - t_wall0,
-        extra={"playback": rep, **video_extra},
-    )
+
+def _detach(
+    backend: MujocoBackend, video: VideoRecorder | None, viewer: ViewerObserver | None, done: Path | None
+) -> None:
+    """After a simulated run: the video dropped unless it was finished (``done``), the viewer closed, the backend shut
+    down."""
+    if video is not None:
+        if done is None:
+            video.abort()
+        video.release()
+        backend.observers.remove(video)
+    if viewer is not None:
+        viewer.viewer.close()
+    backend.shutdown()
 
 
 def sine_test_trajectory(

@@ -22,10 +22,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robogest.backends.audio import AudioOut, open_output
 from robogest.backends.base import Backend
 from robogest.backends.control import ControlLoop, Interrupted, signals_end_at_rest
 from robogest.errors import BackendError, RobogestError
+from robogest.media.audio import AudioOut, open_output
 from robogest.trajectory.types import Trajectory, check_matches
 
 
@@ -111,30 +111,13 @@ def play(
     """
     check_matches(trajectory, backend.robot)  # before anything moves
     report = PlaybackReport()
-    sd = open_output()[0] if audio is not None and len(audio) and time_scale == 1.0 else None
-    sound = AudioOut(sd, audio_sr) if sd is not None else None
-    if sound is not None:
-        sound.write(audio)
-        sound.finish()
-        sound.open()  # outside the control tick that starts it
+    sound = _sound(audio, audio_sr) if time_scale == 1.0 else None
     wall0 = time.monotonic()
     loop = ControlLoop(backend, rate_hz, threaded=False, read_back=read_back, time_scale=time_scale)
     with signals_end_at_rest():
         interrupted: BaseException | None = None
         try:
-            loop.start()
-            handle = loop.play(trajectory)
-            handle.progress = progress
-
-            def started() -> None:
-                report.ramp_in_s = handle.events["started"].loop_s
-                report.audio = sound is not None and sound.start()
-                if on_start is not None:
-                    on_start(report.ramp_in_s)
-
-            handle.on_start = started
-            handle.wait()
-            report.completed = True
+            _run(loop, trajectory, report, sound, progress, on_start)
         except RobogestError as e:
             report.errors.append(str(e))
             e.report = report  # type: ignore[attr-defined]
@@ -143,25 +126,75 @@ def play(
             interrupted = e
             raise
         finally:
-            if sound is not None:
-                sound.stop()
-            late: Interrupted | None = None
-            try:
-                problem = loop.close()
-            except Interrupted as e:  # arrived during the glide to rest: raised once at rest with torque off
-                problem, late = loop.rest_problem, e
-            finally:
-                _finish(report, backend, loop, wall0)
-            for it in (interrupted, late):
-                if isinstance(it, Interrupted):
-                    it.outcome = (
-                        f"the robot {problem}; torque off attempted"
-                        if problem
-                        else "the robot went to rest and torque is off"
-                    )
+            late = _end(report, backend, loop, wall0, sound, interrupted)
             if late is not None and interrupted is None and report.completed:
                 raise late  # the play itself had ended: the signal is what the caller must hear of
     return report
+
+
+def _run(
+    loop: ControlLoop,
+    trajectory: Trajectory,
+    report: PlaybackReport,
+    sound: AudioOut | None,
+    progress: Callable[[float, float], None] | None,
+    on_start: Callable[[float], None] | None,
+) -> None:
+    """Start the loop (present pose held, torque on) and play ``trajectory`` to its end; the speech starts with
+    trajectory time 0 (after any glide to the first pose)."""
+    loop.start()
+    handle = loop.play(trajectory)
+    handle.progress = progress
+
+    def started() -> None:
+        report.ramp_in_s = handle.events["started"].loop_s
+        report.audio = sound is not None and sound.start()
+        if on_start is not None:
+            on_start(report.ramp_in_s)
+
+    handle.on_start = started
+    handle.wait()
+    report.completed = True
+
+
+def _sound(audio: np.ndarray | None, audio_sr: int) -> AudioOut | None:
+    """The speech output with ``audio`` queued and its stream opened (outside the control tick that starts it);
+    None without audio or without an output device."""
+    sd = open_output()[0] if audio is not None and len(audio) else None
+    if sd is None or audio is None:
+        return None
+    sound = AudioOut(sd, audio_sr)
+    sound.write(audio)
+    sound.finish()
+    sound.open()
+    return sound
+
+
+def _end(
+    report: PlaybackReport,
+    backend: Backend,
+    loop: ControlLoop,
+    wall0: float,
+    sound: AudioOut | None,
+    interrupted: BaseException | None,
+) -> Interrupted | None:
+    """Silence, the glide to rest and torque off (``loop.close``), the report filled in; each interruption told
+    where the robot ended. Returns an :class:`Interrupted` that arrived during the glide (raised once at rest)."""
+    if sound is not None:
+        sound.stop()
+    late: Interrupted | None = None
+    try:
+        problem = loop.close()
+    except Interrupted as e:  # arrived during the glide to rest: raised once at rest with torque off
+        problem, late = loop.rest_problem, e
+    finally:
+        _finish(report, backend, loop, wall0)
+    for it in (interrupted, late):
+        if isinstance(it, Interrupted):
+            it.outcome = (
+                f"the robot {problem}; torque off attempted" if problem else "the robot went to rest and torque is off"
+            )
+    return late
 
 
 def _finish(report: PlaybackReport, backend: Backend, loop: ControlLoop, wall0: float) -> None:

@@ -8,26 +8,31 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from robogest.errors import ConfigError, InputError
 
+if TYPE_CHECKING:
+    from robogest.backends.servos.bringup import Finding, FoundServo
+    from robogest.backends.servos.bus import ServoBackend
+    from robogest.backends.servos.protocol import ServoModel
+    from robogest.backends.servos.transport import Transport
+    from robogest.robot.config import RobotConfig
 
-def _robot_backend(name: str, port: str | None, **options: Any) -> tuple[Any, Any]:
-    import robogest.backends.dynamixel
-    import robogest.backends.feetech  # noqa: F401 - register the servo backends
-    from robogest.backends.base import get_backend_factory
+
+def _robot_backend(name: str, port: str | None, **options: Any) -> tuple[RobotConfig, ServoBackend]:
+    from robogest.backends.servos.bus import servo_backend
     from robogest.robot.registry import find_robot
 
     robot = find_robot(name)
     if robot.bus is None:
         raise ConfigError(f"robot {robot.name!r} has no bus section; add bus: family, protocol, baudrate, servos")
-    return robot, get_backend_factory(robot.bus.family)(robot, port=port, **options)
+    return robot, servo_backend(robot, port=port, **options)
 
 
-def _joint_index(robot: Any, joint: str) -> int:
+def _joint_index(robot: RobotConfig, joint: str) -> int:
     if joint not in robot.joint_names:
         raise InputError(f"robot {robot.name!r} has no joint {joint!r}; its joints: {', '.join(robot.joint_names)}")
     return robot.joint_names.index(joint)
@@ -36,8 +41,8 @@ def _joint_index(robot: Any, joint: str) -> int:
 # --- jog -----------------------------------------------------------------------------------------
 def jog(args: argparse.Namespace) -> int:
     """One joint to an angle through the one control loop (online limiter + goal guard) at a fraction of the limits."""
-    from robogest.backends.base import get_backend_factory
     from robogest.backends.control import ControlLoop, signals_end_at_rest
+    from robogest.backends.servos.bus import servo_backend
     from robogest.robot.registry import find_robot
 
     robot = find_robot(args.robot)
@@ -66,13 +71,11 @@ def jog(args: argparse.Namespace) -> int:
             ]
         }
     )
-    import robogest.backends.dynamixel
-    import robogest.backends.feetech  # noqa: F401 - register the servo backends
-
-    backend = get_backend_factory(gentle.bus.family)(gentle, port=args.port)
+    backend = servo_backend(gentle, port=args.port)
     with signals_end_at_rest(), ControlLoop(backend, rate_hz=50.0) as loop:  # leaving: rest, torque off
         goal = loop.goal_rad.copy()
         goal[k] = args.angle
+        assert loop.limiter is not None  # started: the loop has its limiter
         goal = loop.limiter.clamp_target(goal)  # the loop keeps its margin inside the limits: wait for that pose
         loop.set_idle(lambda t: goal)
         deadline = time.monotonic() + 120.0
@@ -210,7 +213,7 @@ def _fit_joint(
     direction = 1.0 if ticks["upper"] >= ticks["zero"] else -1.0
 
     def rad(tick: float) -> float:
-        return ((tick - model.centre_tick) / per_rad - zero) / (servo.gear_ratio * direction)
+        return float(((tick - model.centre_tick) / per_rad - zero) / (servo.gear_ratio * direction))
 
     far_up, far_down = (max(seen), min(seen)) if direction > 0 else (min(seen), max(seen))
     upper, lower = rad(far_up) - margin, rad(far_down) + margin
@@ -225,15 +228,18 @@ def _fit_joint(
 
 # --- doctor --------------------------------------------------------------------------------------
 def doctor(args: argparse.Namespace) -> int:
-    from robogest.backends.bringup import Finding, ServoLink, check_latency_timer, protocol_name, scan, set_baud
+    from robogest.backends.servos.bringup import Finding, check_latency_timer, scan, set_baud
+    from robogest.backends.servos.protocol import ServoProtocol
+    from robogest.backends.servos.transport import Transport
 
     findings = [check_latency_timer(args.port, args.fix)]
     for f in findings:
         print(f.line())
-    expected: dict[int, tuple[str, int, int, Any]] = {}  # id -> (joint, min tick, max tick, model) from the YAML
+    expected: dict[int, tuple[str, int, int, ServoModel]] = {}  # id -> (joint, min tick, max tick, model) from the YAML
     if args.robot:
         robot, backend = _robot_backend(args.robot, args.port)
-        proto = protocol_name(robot.bus.family, robot.bus.protocol)
+        assert robot.bus is not None
+        proto = ServoProtocol.of_bus(robot.bus.family, robot.bus.protocol)
         lo_t, hi_t = backend.rad_to_ticks(robot.q_min_rad), backend.rad_to_ticks(robot.q_max_rad)
         for k, j in enumerate(robot.joint_names):
             expected[int(backend.ids[k])] = (j, int(min(lo_t[k], hi_t[k])), int(max(lo_t[k], hi_t[k])),
@@ -251,31 +257,33 @@ def doctor(args: argparse.Namespace) -> int:
                     continue
                 _say(findings, Finding("error", what + "; set its Baud Rate register or the YAML's bus.baudrate"))
     else:
-        bus_found = scan(args.port, args.protocol, args.baud)
+        bus_found = scan(args.port, [ServoProtocol.named(p) for p in args.protocol or []], args.baud)
         if not bus_found:
             _say(findings, Finding("error", f"no servo answered on {args.port}; check power and wiring"))
-    for f in bus_found:
-        with ServoLink(args.port, f.protocol, f.baud) as link:
-            for finding in _check_servo(link, f, expected.get(f.id), args.fix):
+    for found in bus_found:
+        with Transport(args.port, found.protocol, found.baud) as link:
+            for finding in _check_servo(link, found, expected.get(found.id), args.fix):
                 _say(findings, finding)
     bad = [f for f in findings if f.level in ("warn", "error")]
     print(f"{len(bad)} problem(s)" + ("; --fix sets what it can" if bad and not args.fix else ""))
     return 1 if bad else 0
 
 
-def _say(findings: list[Any], f: Any) -> None:
+def _say(findings: list[Finding], f: Finding) -> None:
     findings.append(f)
     print(f.line(), flush=True)
 
 
-def _check_servo(link: Any, f: Any, expected: tuple[str, int, int, Any] | None, fix: bool) -> list[Any]:
-    from robogest.backends.bringup import Finding
+def _check_servo(
+    link: Transport, f: FoundServo, expected: tuple[str, int, int, ServoModel] | None, fix: bool
+) -> list[Finding]:
+    from robogest.backends.servos.bringup import Finding, write_eeprom
 
     who = f"servo id {f.id}" + (f" (joint {expected[0]})" if expected else "")
     out = []
     if f.return_delay_us > 0:
         if fix:
-            link.write_eeprom(f.id, link.reg("RETURN_DELAY_TIME"), 0)
+            write_eeprom(link, f.id, link.wire.reg("RETURN_DELAY_TIME"), 0)
             out.append(Finding("fixed", f"{who}: return delay {f.return_delay_us:.0f} us -> 0"))
         else:
             out.append(Finding("warn", f"{who}: return delay {f.return_delay_us:.0f} us before every reply; set 0"))
@@ -303,18 +311,18 @@ def _check_servo(link: Any, f: Any, expected: tuple[str, int, int, Any] | None, 
                 f"[{lo}, {hi}]" + ("; motion would be refused at connect" if narrower else "")
             )
             if fix:
-                link.write_eeprom(f.id, link.reg("MIN_POSITION_LIMIT", "CW_ANGLE_LIMIT"), lo)
-                link.write_eeprom(f.id, link.reg("MAX_POSITION_LIMIT", "CCW_ANGLE_LIMIT"), hi)
+                write_eeprom(link, f.id, link.wire.reg("MIN_POSITION_LIMIT", "CW_ANGLE_LIMIT"), lo)
+                write_eeprom(link, f.id, link.wire.reg("MAX_POSITION_LIMIT", "CCW_ANGLE_LIMIT"), hi)
                 out.append(Finding("fixed", what + f"; servo limits set to [{lo}, {hi}]"))
             else:
                 why = "" if narrower else " (the servo's own limits are a second line of defence)"
                 out.append(Finding("error" if narrower else "warn", what + f"; set them to the YAML's{why}"))
         else:
             out.append(Finding("ok", f"{who}: position limits [{smin}, {smax}] match the YAML"))
-    regs = link.registers().__members__
+    regs = link.wire.registers.__members__
     torque = next((n for n in ("MAX_TORQUE_LIMIT", "MAX_TORQUE", "PWM_LIMIT") if n in regs), None)
     if torque:
-        full = 885 if torque == "PWM_LIMIT" else (1000 if link.protocol in ("sts", "scs") else 1023)
+        full = 885 if torque == "PWM_LIMIT" else (1000 if link.protocol.family == "feetech" else 1023)
         pct = 100.0 * link.read(f.id, regs[torque]) / full
         level = "ok" if pct >= 50 else "warn"
         out.append(Finding(level, f"{who}: torque limit {pct:.0f} % ({torque})" + ("" if pct >= 50 else "; weak")))

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import signal
 import sys
@@ -12,9 +11,8 @@ import threading
 from typing import Any
 
 from robogest.cli import checks
-from robogest.errors import BackendError, ConfigError, InputError, SafetyError
-
-_PROTOCOLS = ("dxl2", "sts", "scs", "dxl1")
+from robogest.cli.servo_raw_cmds import PROTOCOL_CHOICES
+from robogest.errors import ConfigError, InputError
 
 
 def add_check_parser(sub: Any) -> None:
@@ -56,7 +54,7 @@ def register(subparsers: Any) -> None:
     )
     scan.add_argument("--port", help="serial port (default: the --robot YAML's bus.port, else the one USB serial port)")
     scan.add_argument("--robot", help="robot name or YAML path: compare the bus with its bus section")
-    scan.add_argument("--protocol", choices=_PROTOCOLS, action="append", help="repeatable; default all")
+    scan.add_argument("--protocol", choices=PROTOCOL_CHOICES, action="append", help="repeatable; default all")
     scan.add_argument("--baud", type=checks.baud, action="append", help="repeatable; default the common ones")
     scan.add_argument(
         "--max-id",
@@ -74,7 +72,7 @@ def register(subparsers: Any) -> None:
     )
     doc.add_argument("--port", required=True)
     doc.add_argument("--robot", help="robot name or YAML: also check ids, baud and position limits against it")
-    doc.add_argument("--protocol", choices=_PROTOCOLS, action="append", help="without --robot: repeatable")
+    doc.add_argument("--protocol", choices=PROTOCOL_CHOICES, action="append", help="without --robot: repeatable")
     doc.add_argument("--baud", type=checks.baud, action="append", help="without --robot: repeatable")
     doc.add_argument("--fix", action="store_true", help="set what can be set (turns torque off: support the arms)")
     doc.set_defaults(func=_doctor)
@@ -98,35 +96,9 @@ def register(subparsers: Any) -> None:
     jog.add_argument("--speed", type=float, default=0.25, help="fraction of the joint's speed limit (default: 0.25)")
     jog.add_argument("--hold", type=float, default=1.0, help="seconds to hold the angle (default: %(default)s)")
     jog.set_defaults(func=_jog)
-    for name in ("ping", "read", "write"):
-        p = ss.add_parser(
-            name,
-            help=f"{name} one servo",
-            epilog="With --robot, a goal outside that joint's limits, torque on with the goal away from the servo, "
-            "and any register other than GOAL_POSITION, TORQUE_ENABLE and LED are refused (exit 4) and nothing is "
-            "written. Values are range-checked and written in the register's encoding; an ID already taken on the "
-            "bus is refused."
-            if name == "write"
-            else None,
-        )
-        p.add_argument("--port", required=True)
-        p.add_argument("--id", type=checks.number(0, 253, integer=True), required=True, help="servo id, 0..253")
-        robot_s = "the --robot's, else " if name == "write" else ""
-        p.add_argument("--protocol", choices=_PROTOCOLS, default=None, help=f"default: {robot_s}dxl2")
-        p.add_argument("--baud", type=checks.baud, default=None, help=f"default: {robot_s}1000000")
-        if name == "write":
-            p.add_argument("--robot", help="robot name or YAML path: a goal is checked against its joint limits and "
-                           "sent with the joint's speed and acceleration caps, torque goes on only with the goal near "
-                           "the servo; only GOAL_POSITION, TORQUE_ENABLE and LED are taken (without it: raw "
-                           "registers)")  # fmt: skip
-        if name != "ping":
-            g = p.add_mutually_exclusive_group(required=True)
-            g.add_argument("--register", help="register name, e.g. PRESENT_POSITION")
-            g.add_argument("--addr", type=checks.number(0, 65535, integer=True), help="raw address (needs --size)")
-            p.add_argument("--size", type=int, choices=(1, 2, 4), default=None, help="bytes at --addr: 1, 2 or 4")
-        if name == "write":
-            p.add_argument("--value", type=checks.number(-(2**31), 2**32 - 1, integer=True), required=True)
-        p.set_defaults(func=_one)
+    from robogest.cli.servo_raw_cmds import add_raw_parsers
+
+    add_raw_parsers(ss)
     add_check_parser(ss)
     from robogest.cli.servo_setup_cmds import add_parsers
 
@@ -171,13 +143,7 @@ def _virtual_bus(args: argparse.Namespace) -> int:
     return 0
 
 
-# --- raw access ----------------------------------------------------------------------------------
-def _link(port: str, protocol: str, baud: int) -> Any:
-    from robogest.backends.bringup import ServoLink
-
-    return ServoLink(port, protocol, baud)
-
-
+# --- scan ----------------------------------------------------------------------------------------
 def _status(what: str, done: int, total: int) -> None:
     """Progress on a terminal: one line rewritten in place on stderr."""
     if sys.stderr.isatty():
@@ -188,7 +154,8 @@ def _status(what: str, done: int, total: int) -> None:
 def _scan(args: argparse.Namespace) -> int:
     import json
 
-    from robogest.backends.bringup import scan
+    from robogest.backends.servos.bringup import scan
+    from robogest.backends.servos.protocol import ServoProtocol
 
     if args.robot is not None:
         return _scan_robot(args)
@@ -196,8 +163,9 @@ def _scan(args: argparse.Namespace) -> int:
         from robogest.cli.servo_setup_cmds import port_of
 
         args.port = port_of(None, None, "servo scan")
+    protocols = [ServoProtocol.named(p) for p in args.protocol or []]
     found = scan(
-        args.port, args.protocol, args.baud, max_id=args.max_id, per_id=args.per_id, all_protocols=args.all,
+        args.port, protocols, args.baud, max_id=args.max_id, per_id=args.per_id, all_protocols=args.all,
         progress=lambda k, n, what: _status(what, k, n),
     )  # fmt: skip
     if args.json:
@@ -215,7 +183,8 @@ def _scan_robot(args: argparse.Namespace) -> int:
     """``servo scan --robot``: the robot's bus section against what answers (see the subcommand's description)."""
     import json
 
-    from robogest.backends.bringup import match_robot, protocol_name, scan_robot
+    from robogest.backends.servos.bringup import match_robot, scan_robot
+    from robogest.backends.servos.protocol import ServoProtocol
     from robogest.robot.registry import find_robot
 
     robot = find_robot(args.robot)
@@ -226,7 +195,7 @@ def _scan_robot(args: argparse.Namespace) -> int:
     from robogest.cli.servo_setup_cmds import port_of
 
     port = port_of(args.port, robot, "servo scan")
-    proto = protocol_name(robot.bus.family, robot.bus.protocol)
+    proto = ServoProtocol.of_bus(robot.bus.family, robot.bus.protocol)
     bauds = args.baud or [robot.bus.baudrate]
     found = scan_robot(port, robot, bauds, max_id=args.max_id, per_id=args.per_id,
                        progress=lambda k, n, what: _status(what, k, n))  # fmt: skip
@@ -234,7 +203,7 @@ def _scan_robot(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps([r.as_dict() for r in rows], indent=1))
     else:
-        print(f"{robot.name}: {proto} at {', '.join(map(str, bauds))} baud on {port}")
+        print(f"{robot.name}: {proto.cli_name} at {', '.join(map(str, bauds))} baud on {port}")
         for r in rows:
             print(r.line())
     bad = [r for r in rows if not r.ok]
@@ -247,227 +216,14 @@ def _scan_robot(args: argparse.Namespace) -> int:
     return 0
 
 
-def _answers(link: Any, sid: int) -> bool:
-    """Whether a servo answers at id ``sid`` (its Model Number is read)."""
-    try:
-        link.read(sid, link.reg("MODEL_NUMBER"), attempts=2)
-    except BackendError:
-        return False
-    return True
-
-
-def _resolve(link: Any, args: argparse.Namespace) -> tuple[str, int, int]:
-    if args.register:
-        regs = link.registers()
-        key = args.register.upper()
-        if key not in regs.__members__:
-            raise InputError(
-                f"unknown register {args.register!r} for {link.protocol}; one of {', '.join(regs.__members__)}"
-            )
-        addr, size = regs[key].value
-        return key, addr, size
-    if args.size is None:  # a 1-byte default read the low byte of a 4-byte register, and wrote it alone
-        raise InputError(f"--addr {args.addr} needs --size 1, 2 or 4 (the register's width in bytes), or --register")
-    return f"address {args.addr}", args.addr, args.size
-
-
-def _robot_protocol(robot: Any) -> str:
-    """The ``--protocol`` name of a robot's bus."""
-    bus = robot.bus
-    if bus.family == "dynamixel":
-        return "dxl2" if bus.protocol == 2.0 else "dxl1"
-    return "sts" if bus.protocol == 0.0 else "scs"
-
-
-def _joint_of_servo(robot: Any, args: argparse.Namespace) -> tuple[Any, int]:
-    """``(backend, k)``: the robot's backend (its rad/tick mapping only; opens nothing) and the index of the joint
-    that servo ``args.id`` moves."""
-    import robogest.backends.dynamixel
-    import robogest.backends.feetech  # noqa: F401 - register the families
-    from robogest.backends.base import get_backend_factory
-
-    joints = {s.id: j for j, s in robot.bus.servos.items()}
-    if args.id not in joints:
-        raise InputError(f"servo id {args.id} is not in robot {robot.name} (ids {sorted(joints)}); check --id")
-    return get_backend_factory(robot.bus.family)(robot, port=args.port), robot.joint_names.index(joints[args.id])
-
-
-def _check_goal_write(robot: Any, args: argparse.Namespace, name: str, addr: int, size: int, regs: Any) -> None:
-    """Refuse (nothing written) a goal-position write outside the joint limits of the servo's joint in ``robot``."""
-    g_addr, g_size = regs.GOAL_POSITION.value
-    if not (addr < g_addr + g_size and g_addr < addr + size):
-        return  # does not touch the goal position
-    if (addr, size) != (g_addr, g_size):
-        raise SafetyError(
-            f"servo id {args.id}: writing {name} overlaps GOAL_POSITION; write it as --register GOAL_POSITION so it "
-            f"can be checked against robot {robot.name}'s joint limits"
-        )
-    import numpy as np
-
-    backend, k = _joint_of_servo(robot, args)
-    ends = backend.rad_to_ticks(robot.q_min_rad)[k], backend.rad_to_ticks(robot.q_max_rad)[k]
-    lo, hi = int(min(ends)), int(max(ends))
-    if not lo <= args.value <= hi:
-        q = float(backend.ticks_to_rad(np.full(len(robot.joints), args.value))[k])
-        raise SafetyError(
-            f"servo id {args.id} (joint {robot.joint_names[k]}): goal position {args.value} ({q:+.3f} rad) is outside "
-            f"robot {robot.name}'s joint limits, ticks [{lo}, {hi}] = [{robot.q_min_rad[k]:+.3f}, "
-            f"{robot.q_max_rad[k]:+.3f}] rad; nothing written"
-        )
-
-
-#: With ``--robot``, ``servo write`` takes only these: the goal is checked against the joint's limits, torque on only
-#: with a goal inside them near the present pose. Registers that move the limits, the zero, the mode, the speed
-#: caps, the id or the baud rate are what the robot YAML and ``servo doctor`` manage; without ``--robot`` the
-#: command is a raw register tool.
-ROBOT_WRITABLE = frozenset({"GOAL_POSITION", "TORQUE_ENABLE", "LED"})
-
-
-def _value_codec(protocol: str, name: str) -> tuple[int | None, bool]:
-    """``(sign bit, two's complement)`` of register ``name``: sign-magnitude registers (Feetech STS/SCS, Dynamixel
-    Protocol 1.0 speeds and loads) and two's-complement ones (Dynamixel X)."""
-    from robogest.backends import dynamixel_tables as dt
-    from robogest.backends import feetech_tables as ft
-
-    signs = {"sts": ft.STS_SIGN_BITS, "scs": ft.SCS_SIGN_BITS, "dxl1": dt.P1_SIGN_BITS}.get(protocol, {})
-    bit = next((b for r, b in signs.items() if r.name == name), None)
-    return bit, protocol == "dxl2" and any(r.name == name for r in dt.X_SIGNED)
-
-
-def _encode_value(protocol: str, name: str, size: int, value: int) -> int:
-    """The register bytes' value for ``value``, or InputError if it does not fit (a two's-complement -100 in a
-    Feetech sign-magnitude register moved the zero by 171 degrees)."""
-    from robogest.backends.servo_common import sign_magnitude_encode
-
-    bit, twos = _value_codec(protocol, name)
-    bits = 8 * size
-    lo, hi = (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) if twos else (0, 2**bits - 1)
-    if bit is not None:
-        lo, hi = -(2**bit - 1), 2**bit - 1
-    if not lo <= value <= hi:
-        raise InputError(f"{name}: value {value} does not fit the {size}-byte register (from {lo} to {hi})")
-    if bit is not None:
-        return sign_magnitude_encode(value, bit)
-    return value & (2**bits - 1)
-
-
-def _decode_value(protocol: str, name: str, size: int, raw: int) -> int:
-    from robogest.backends.servo_common import sign_magnitude_decode
-
-    bit, twos = _value_codec(protocol, name)
-    if bit is not None:
-        return sign_magnitude_decode(raw, bit)
-    if twos and raw >= 2 ** (8 * size - 1):
-        return raw - 2 ** (8 * size)
-    return raw
-
-
-def _read_value(link: Any, sid: int, name: str) -> int:
-    """Register ``name`` of servo ``sid``, decoded (:func:`_decode_value`)."""
-    reg = link.reg(name)
-    return _decode_value(link.protocol, name, reg.value[1], link.read(sid, reg))
-
-
-def _check_robot_write(robot: Any, link: Any, args: argparse.Namespace, name: str) -> None:
-    """With ``--robot``: only :data:`ROBOT_WRITABLE`; a goal goes with the servo's speed cap and acceleration limit
-    set from the joint's limits; torque on only with the goal inside the limits, near the present pose (a servo
-    moved by hand while off would otherwise snap back to its old goal at full speed)."""
-    if name not in ROBOT_WRITABLE:
-        raise SafetyError(
-            f"servo id {args.id}: with --robot, servo write takes only {', '.join(sorted(ROBOT_WRITABLE))}; {name} "
-            "changes what the robot YAML and `robogest servo doctor` manage (limits, zero, mode, speed, id, baud); "
-            "leave out --robot to write raw registers; nothing written"
-        )
-    if name == "LED" or (name == "TORQUE_ENABLE" and args.value == 0):
-        return
-    from robogest.backends.servo_check import require_hardware_safe
-
-    require_hardware_safe(robot, "nothing written")  # the limits a goal is checked against must be the robot's
-    backend, k = _joint_of_servo(robot, args)
-    if name == "GOAL_POSITION":  # at the joint's speed and acceleration, as a session moves it, not the servo's top
-        for reg, units in backend.profile_caps():
-            if units[k]:  # 0: no acceleration register on this model (AX-12A, SCS0009)
-                cap = link.reg(reg.name)
-                link.write(args.id, cap, _encode_value(link.protocol, cap.name, cap.value[1], int(units[k])))
-        return
-    goal, present = (_read_value(link, args.id, r) for r in ("GOAL_POSITION", "PRESENT_POSITION"))
-    goal_args = argparse.Namespace(id=args.id, value=goal, port=args.port)
-    _check_goal_write(robot, goal_args, "GOAL_POSITION", *link.reg("GOAL_POSITION").value, link.registers())
-    if abs(goal - present) > TORQUE_ON_WITHIN_RAD * backend.models[k].ticks_per_rev / (2 * math.pi):
-        raise SafetyError(
-            f"servo id {args.id}: torque on would drive it from tick {present} to its goal {goal} at full speed; "
-            f"write GOAL_POSITION {present} (where it is) first; nothing written"
-        )
-
-
-#: ``servo write --robot ... TORQUE_ENABLE 1`` needs the goal within this of the present position, radians.
-TORQUE_ON_WITHIN_RAD = 0.05
-
-
-def _one(args: argparse.Namespace) -> int:
-    robot = None
-    if getattr(args, "robot", None):
-        from robogest.robot.registry import find_robot
-
-        robot = find_robot(args.robot)
-        if robot.bus is None:
-            raise ConfigError(f"robot {robot.name!r} has no bus section; add one or leave out --robot")
-        if args.protocol and args.protocol != _robot_protocol(robot):
-            raise InputError(
-                f"--protocol {args.protocol} does not match robot {robot.name} ({_robot_protocol(robot)}); "
-                "leave out --protocol to use the robot's"
-            )
-    protocol = args.protocol or (_robot_protocol(robot) if robot else "dxl2")
-    baud = args.baud or (robot.bus.baudrate if robot else 1_000_000)
-    link = _link(args.port, protocol, baud)
-    try:
-        ph, port = link.ph, link.port
-        if args.func is _one and not hasattr(args, "register"):
-            # a Model Number read, not the SDK's ping: scservo_sdk's raises on a short or late reply
-            model = link.read(args.id, link.reg("MODEL_NUMBER"))
-            print(f"id {args.id}: model {model} ({link.model_name(model)})")
-            return 0
-        name, addr, size = _resolve(link, args)
-        if hasattr(args, "value"):
-            raw = _encode_value(protocol, name, size, args.value)
-            if robot is not None:
-                _check_goal_write(robot, args, name, addr, size, link.registers())
-                _check_robot_write(robot, link, args, name)
-            if name == "ID" and args.value != args.id and _answers(link, args.value):
-                raise InputError(
-                    f"servo id {args.id}: id {args.value} is already taken on {args.port} (it answers); two servos "
-                    "with one id garble each other's replies; pick a free id (`robogest servo scan`); nothing written"
-                )
-            fn = {1: ph.write1ByteTxRx, 2: ph.write2ByteTxRx, 4: ph.write4ByteTxRx}[size]
-            comm, err = fn(port, args.id, addr, raw)
-            if not link.ok(comm):
-                raise BackendError(f"servo id {args.id}: writing {name}: {ph.getTxRxResult(comm)}")
-            print(f"id {args.id}: wrote {args.value} to {name}; error byte 0x{err:02X} {ph.getRxPacketError(err)}")
-            return 0 if not err else 5
-        fn = {1: ph.read1ByteTxRx, 2: ph.read2ByteTxRx, 4: ph.read4ByteTxRx}[size]
-        value, comm, err = fn(port, args.id, addr)
-        if not link.ok(comm):
-            raise BackendError(f"servo id {args.id}: reading {name}: {ph.getTxRxResult(comm)}")
-        value = _decode_value(protocol, name, size, value)
-        print(f"id {args.id}: {name} = {value}" + (f"  (error byte 0x{err:02X})" if err else ""))
-        return 0
-    finally:
-        link.close()
-
-
 def _check(args: argparse.Namespace) -> int:
     import numpy as np
 
-    import robogest.backends.dynamixel
-    import robogest.backends.feetech  # noqa: F401
-    from robogest.backends.base import get_backend_factory
-    from robogest.errors import ConfigError
+    from robogest.backends.servos.bus import servo_backend
     from robogest.robot.registry import find_robot
 
     robot = find_robot(args.robot)
-    if robot.bus is None:
-        raise ConfigError(f"robot {robot.name!r} has no bus section")
-    backend = get_backend_factory(robot.bus.family)(robot, port=args.port, baudrate=args.baud)
+    backend = servo_backend(robot, port=args.port, baudrate=args.baud)
     backend.connect()  # pings ids, checks models; raises naming the servo
     try:
         q = backend.read_positions()

@@ -1,14 +1,17 @@
 """``robogest servo find-port|setup``: which serial port is the robot's, and each servo's id and baud rate from the
-robot YAML, one servo at a time (robogest.backends.servo_setup; docs/servos.md)."""
+robot YAML, one servo at a time (robogest.backends.servos.setup; docs/servos.md)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from robogest.cli import checks
 from robogest.errors import ConfigError, InputError
+
+if TYPE_CHECKING:
+    from robogest.robot.config import RobotConfig
 
 
 def add_parsers(ss: Any) -> None:
@@ -57,7 +60,7 @@ def _say(line: str) -> None:
 
 
 def find_port(args: argparse.Namespace) -> int:
-    from robogest.backends import servo_setup
+    from robogest.backends.servos import setup as servo_setup
 
     if args.list:
         ports = servo_setup.list_ports()
@@ -70,21 +73,21 @@ def find_port(args: argparse.Namespace) -> int:
     return 0
 
 
-def port_of(port: str | None, robot: Any, what: str) -> str:
+def port_of(port: str | None, robot: RobotConfig | None, what: str) -> str:
     """``--port``, else the robot's ``bus.port``, else the one USB serial port (InputError listing them)."""
-    from robogest.backends import servo_setup
+    from robogest.backends.servos import setup as servo_setup
 
     if port:
         return port
     if robot is not None and robot.bus is not None and robot.bus.port:
-        return robot.bus.port
+        return str(robot.bus.port)
     found = servo_setup.the_one_port(servo_setup.list_ports, what)
     print(f"using {found}, the one USB serial port plugged in", file=sys.stderr)
     return found
 
 
 def setup(args: argparse.Namespace) -> int:
-    from robogest.backends import servo_setup
+    from robogest.backends.servos import setup as servo_setup
     from robogest.cli.servo_cmds import _status
     from robogest.robot.registry import find_robot
 

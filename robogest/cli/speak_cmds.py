@@ -178,7 +178,7 @@ def _hardware_backend(args: argparse.Namespace, robot: RobotConfig) -> Backend |
     if args.backend == "sim":
         return None
     from robogest.backends import get_backend_factory
-    from robogest.backends.servo_check import require_hardware_safe
+    from robogest.backends.servos.check import require_hardware_safe
     from robogest.errors import InputError
 
     sim_only = [flag for flag, on in (("--video", args.video), ("--realtime", args.realtime), ("--view", args.view))

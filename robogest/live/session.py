@@ -34,13 +34,13 @@ from typing import Any
 
 import numpy as np
 
-from robogest.backends.audio import AudioOut, open_output
 from robogest.backends.base import Backend
 from robogest.errors import InputError
 from robogest.live import claims
 from robogest.live.idle import IdleConfig, IdleMotion
 from robogest.live.style import BodyLanguage, body_language
 from robogest.live.worker import Worker
+from robogest.media.audio import AudioOut, open_output
 from robogest.robot.registry import DEFAULT_ROBOT
 
 #: Event types an utterance can report, in the order they usually happen.

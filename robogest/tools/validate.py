@@ -9,7 +9,7 @@ vectors can actually be followed. The test suite runs :func:`validate_robot` on 
 
 This module is a robot tool, above the stages it checks (retargeting, the servo backends' model tables); the
 parts those stages need themselves live below them: the MJCF loader (:mod:`robogest.robot.mjcf`), the model/YAML
-mapping check (:mod:`robogest.robot.problems`) and the servo check (:mod:`robogest.backends.servo_check`).
+mapping check (:mod:`robogest.robot.problems`) and the servo check (:mod:`robogest.backends.servos.check`).
 MuJoCo and the retargeter load inside the functions, so the CLI's import stays cheap.
 """
 
@@ -53,7 +53,7 @@ def validate(name_or_path: str | Path) -> list[Problem]:
 
 def validate_robot(robot: RobotConfig, check_reach: bool = True) -> list[Problem]:
     """All problems of a loaded robot (empty list: it is consistent and safe to play)."""
-    from robogest.backends.servo_check import servo_problems  # the backends load their servo tables on use
+    from robogest.backends.servos.check import servo_problems  # the backends load their servo tables on use
 
     yml = robot.path or Path(f"{robot.name}.yaml")
     mjcf = robot.model_path

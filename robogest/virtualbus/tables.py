@@ -1,7 +1,7 @@
 """Control tables of the emulated servo models, typed in from the vendors' manuals.
 
 This file belongs to the *simulated* bus only: the backends keep their own register tables
-(``robogest/backends/*_tables.py``) so that a typo on one side shows up as a test failure instead of
+(``robogest/backends/servos/*/tables.py``) so that a typo on one side shows up as a test failure instead of
 being shared by the code under test and the code that checks it.
 
 Sources: ROBOTIS e-manual (XL430-W250, XM430-W350, XL330-M288, AX-12A, MX-28 Protocol 1.0) and the

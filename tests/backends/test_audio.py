@@ -54,7 +54,7 @@ def test_play_streams_the_speech_samples_and_closes_the_stream(monkeypatch):
 
 
 def test_a_live_stream_plays_until_closed_and_an_interrupt_silences_it_at_once():
-    from robogest.backends.audio import AudioOut
+    from robogest.media.audio import AudioOut
 
     sd = FakeSD()
     out = AudioOut(sd, 8000)
@@ -96,7 +96,7 @@ def test_no_audio_output_names_what_is_missing(monkeypatch, raised, says):
     import builtins
     import sys
 
-    from robogest.backends.audio import open_output
+    from robogest.media.audio import open_output
 
     real_import = builtins.__import__
 

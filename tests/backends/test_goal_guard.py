@@ -13,8 +13,8 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-import robogest.backends.dynamixel
-import robogest.backends.feetech  # noqa: F401 - registers "feetech"
+import robogest.backends.servos.dynamixel
+import robogest.backends.servos.feetech  # noqa: F401 - registers "feetech"
 from robogest.backends.base import Backend, check_goal, get_backend_factory
 from robogest.backends.mujoco_sim import MujocoBackend, sine_test_trajectory
 from robogest.backends.player import play

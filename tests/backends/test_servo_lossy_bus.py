@@ -7,11 +7,11 @@ import time
 import numpy as np
 import pytest
 
-import robogest.backends.dynamixel
-import robogest.backends.feetech  # noqa: F401 - registers "feetech"
+import robogest.backends.servos.dynamixel
+import robogest.backends.servos.feetech  # noqa: F401 - registers "feetech"
 from robogest.backends.base import get_backend_factory
 from robogest.backends.player import play
-from robogest.backends.servo_common import collect_status_packets
+from robogest.backends.servos.transport import collect_status_packets
 from robogest.errors import BackendError
 from robogest.virtualbus import VirtualBus
 from robogest.virtualbus.testing import make_robot
@@ -46,7 +46,7 @@ def test_five_percent_reply_faults_on_eleven_servos_complete(tmp_path, family, p
     # starved test machine delivered after its deadline is lost too: it is retried and later dropped as stale,
     # either skipped during a later request or dropped before one (counted in bytes: at most one reply per
     # shortest status packet's worth).
-    _, _, p0, trailer = backend.STATUS_LAYOUT  # a status packet with no parameters has p0 + trailer bytes
+    _, _, p0, trailer = backend.wire.status_layout  # a status packet with no parameters has p0 + trailer bytes
     late = backend.stale_replies + backend.stale_bytes // (p0 + trailer)
     assert faults > 0 and 0 < report.retries <= faults + late
     assert report.missed_reads <= faults
@@ -140,7 +140,7 @@ def test_collect_status_packets_matches_replies_by_id():
 
 @pytest.mark.parametrize("persistent", [False, True])
 def test_unreadable_health_is_skipped_until_it_persists(tmp_path, persistent):
-    from robogest.backends.servo_common import BusUnreliableError
+    from robogest.backends.servos.bus_io import BusUnreliableError
 
     robot = make_robot(tmp_path, n_joints=3)
     with VirtualBus(robot) as bus:

@@ -7,11 +7,11 @@ import time
 import numpy as np
 import pytest
 
-import robogest.backends.dynamixel
-import robogest.backends.feetech  # noqa: F401 - registers "feetech"
+import robogest.backends.servos.dynamixel
+import robogest.backends.servos.feetech  # noqa: F401 - registers "feetech"
 from robogest.backends.base import get_backend_factory
 from robogest.backends.player import play
-from robogest.backends.servo_common import collect_status_packets
+from robogest.backends.servos.transport import collect_status_packets
 from robogest.cli.main import main
 from robogest.errors import BackendError
 from robogest.robot.config import load_robot_config
@@ -44,7 +44,7 @@ def time_out_and_release_before_the_next_request(backend, bus: VirtualBus, monke
     bus.faults.delay_p = 1.0
     assert not backend._read_raw(sid, reg)[1]  # timed out; its reply is still queued
     bus.faults.delay_p = 0.0
-    begin = backend._begin
+    begin = backend.transport.begin
 
     def begin_then_release_the_late_reply(*args, **kwargs):
         k = begin(*args, **kwargs)
@@ -53,7 +53,7 @@ def time_out_and_release_before_the_next_request(backend, bus: VirtualBus, monke
             bus._line_free_at = time.monotonic()
         return k
 
-    monkeypatch.setattr(backend, "_begin", begin_then_release_the_late_reply)
+    monkeypatch.setattr(backend.transport, "begin", begin_then_release_the_late_reply)
 
 
 def test_late_reply_of_the_same_length_is_never_used(tmp_path, monkeypatch):

@@ -9,11 +9,11 @@ import time
 import numpy as np
 import pytest
 
-import robogest.backends.dynamixel
-import robogest.backends.feetech  # noqa: F401 - registers "feetech"
+import robogest.backends.servos.dynamixel
+import robogest.backends.servos.feetech  # noqa: F401 - registers "feetech"
 from robogest.backends.base import get_backend_factory
 from robogest.backends.player import play
-from robogest.backends.servo_common import ACCEL_CAP_MARGIN
+from robogest.backends.servos.bus import ACCEL_CAP_MARGIN
 from robogest.errors import BackendError
 from robogest.virtualbus import VirtualBus
 from robogest.virtualbus.testing import make_robot, monologue, servo_acceleration_ratio

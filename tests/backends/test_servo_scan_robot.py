@@ -61,7 +61,7 @@ def test_nothing_answering_says_what_to_check_in_one_line(tmp_path, capsys):
 
 
 def test_scan_without_port_or_robot_is_one_line_exit_2(capsys, monkeypatch):
-    monkeypatch.setattr("robogest.backends.servo_setup.list_ports", lambda: [])  # no port plugged in
+    monkeypatch.setattr("robogest.backends.servos.setup.list_ports", lambda: [])  # no port plugged in
     assert main(["servo", "scan"]) == 2
     assert "servo scan needs --port PATH: no USB serial port is plugged in" in capsys.readouterr().err
 
@@ -69,13 +69,14 @@ def test_scan_without_port_or_robot_is_one_line_exit_2(capsys, monkeypatch):
 def test_a_reply_lost_on_a_busy_bus_does_not_read_as_a_missing_servo(tmp_path, capsys):
     """Replies dropped at random (seeded): the broadcast scan alone hears 18 of the 21 servos; every id the YAML
     expects and the scan missed is asked again on its own, so all 21 rows are ok."""
-    from robogest.backends.bringup import scan
+    from robogest.backends.servos.bringup import scan
+    from robogest.backends.servos.protocol import ServoProtocol
 
     path = write_humanoid(tmp_path)
     robot = load_robot_config(path)
     faults = "noreply=0.1,seed=2"
     with VirtualBus(robot, faults) as bus:
-        assert len(scan(bus.port, ["sts"], [1_000_000], max_id=25)) == 18
+        assert len(scan(bus.port, [ServoProtocol.STS], [1_000_000], max_id=25)) == 18
     with VirtualBus(robot, faults) as bus:
         assert main(["servo", "scan", "--robot", str(path), "--port", bus.port, "--max-id", "25"]) == 0
     assert capsys.readouterr().out.count(" ok\n") == len(JOINTS)

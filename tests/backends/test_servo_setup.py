@@ -9,8 +9,8 @@ import signal
 
 import pytest
 
-from robogest.backends import servo_setup
-from robogest.backends.servo_setup import SerialPort
+from robogest.backends.servos import setup as servo_setup
+from robogest.backends.servos.setup import SerialPort
 from robogest.cli.main import main
 from robogest.virtualbus import VirtualBus
 from robogest.virtualbus.testing import make_robot
@@ -216,17 +216,17 @@ def test_setup_writes_nothing_to_a_servo_of_another_model(robots, monkeypatch, c
 def test_ctrl_c_during_a_write_finishes_that_servo_and_says_so(robots, monkeypatch, capsys):
     """Ctrl-C between the id and the baud-rate write left a servo at the new id and the old baud rate; it now waits
     until the servo has both, checked, then stops (exit 130) naming the joints not set up."""
-    from robogest.backends.bringup import ServoLink
+    from robogest.backends.servos.transport import Transport
 
     robot = _setup_robot(robots)
-    write = ServoLink.write
+    write = Transport.write
 
     def write_then_ctrl_c(self, sid, reg, value, attempts=3):
         if reg.name == "BAUD_RATE":
             os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C after the id was written, before the baud rate
         return write(self, sid, reg, value, attempts)
 
-    monkeypatch.setattr(ServoLink, "write", write_then_ctrl_c)
+    monkeypatch.setattr(Transport, "write", write_then_ctrl_c)
     with VirtualBus(robot) as bus:
         _factory_bus(bus)
         monkeypatch.setattr("builtins.input", _hand(bus, robot))
@@ -267,18 +267,18 @@ def test_setup_refuses_bad_requests_before_any_question(robots, monkeypatch, cap
 
 
 def test_a_failed_write_says_which_settings_the_servo_answers_with(robots, monkeypatch, capsys):
-    from robogest.backends.bringup import ServoLink
+    from robogest.backends.servos.transport import Transport
     from robogest.errors import BackendError
 
     robot = _setup_robot(robots)
-    write = ServoLink.write
+    write = Transport.write
 
     def baud_write_lost(self, sid, reg, value, attempts=3):
         if reg.name == "BAUD_RATE":
             raise BackendError(f"servo id {sid}: writing BAUD_RATE: [TxRxResult] There is no status packet!")
         return write(self, sid, reg, value, attempts)
 
-    monkeypatch.setattr(ServoLink, "write", baud_write_lost)
+    monkeypatch.setattr(Transport, "write", baud_write_lost)
     with VirtualBus(robot) as bus:
         _factory_bus(bus)
         monkeypatch.setattr("builtins.input", _hand(bus, robot))

@@ -117,7 +117,7 @@ def test_a_bad_torque_check_period_is_refused_naming_it(tmp_path, bad):
 def test_a_struggling_bus_puts_the_read_back_off_for_at_most_torque_check_s(tmp_path, monkeypatch):
     """On a tick whose position read had to re-read or missed a servo, the read-back waits (that tick already ran
     long, and two missed position reads over lost_after_s declare a servo lost), but not past torque_check_s."""
-    import robogest.backends.servo_common as sc
+    import robogest.backends.servos.bus as sc
 
     robot = make_robot(tmp_path)
     with VirtualBus(robot) as bus:

@@ -104,7 +104,7 @@ def test_second_interrupt_during_the_glide_does_not_drop_the_arms(monkeypatch, c
     rest, then torque off; the goals sent stay within the per-tick velocity limit throughout."""
     import signal
 
-    from robogest.backends.dynamixel import DynamixelBackend
+    from robogest.backends.servos.dynamixel import DynamixelBackend
 
     _signal_at(monkeypatch, signal.SIGTERM)
     write = DynamixelBackend.write_goal
@@ -135,7 +135,7 @@ def test_second_interrupt_during_the_glide_does_not_drop_the_arms(monkeypatch, c
 def test_interrupt_when_the_bus_is_gone_says_rest_was_not_reached(monkeypatch, capsys):
     import signal
 
-    from robogest.backends.dynamixel import DynamixelBackend
+    from robogest.backends.servos.dynamixel import DynamixelBackend
     from robogest.errors import BackendError
 
     _signal_at(monkeypatch, signal.SIGTERM)

@@ -193,7 +193,7 @@ def test_png_writer_round_trips_without_an_image_library(tmp_path):
 
     import numpy as np
 
-    from robogest.backends.png import write_png
+    from robogest.media.png import write_png
 
     rgb = np.random.default_rng(0).integers(0, 256, (5, 7, 3), dtype=np.uint8)
     write_png(tmp_path / "x.png", rgb)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from robogest.backends.servo_check import NO_LOAD_RAD_S
+from robogest.backends.servos.check import NO_LOAD_RAD_S
 from robogest.errors import ConfigError
 from robogest.robot.config import load_robot_config
 from robogest.robot.registry import DEFAULT_ROBOT, find_robot, list_robots

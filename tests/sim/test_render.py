@@ -8,8 +8,9 @@ import pytest
 
 from robogest.backends import render
 from robogest.backends.mujoco_sim import simulate, sine_test_trajectory
-from robogest.backends.render import VideoWriter, render_png
+from robogest.backends.render import render_png
 from robogest.errors import InputError, MissingDependencyError
+from robogest.media.video import VideoWriter
 from robogest.robot.registry import find_robot
 
 

@@ -16,17 +16,19 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Any
 
-from robogest.backends.bringup import (
+from robogest.backends.servos.bringup import (
     COMMON_BAUDS,
     FoundServo,
-    ServoLink,
+    Progress,
     baud_register_value,
-    protocol_name,
+    model_numbers,
     scan,
 )
+from robogest.backends.servos.protocol import ServoProtocol
+from robogest.backends.servos.transport import Transport
 from robogest.errors import BackendError, ConfigError, InputError
+from robogest.robot.config import RobotConfig
 
 Ask = Callable[[str], object]
 Say = Callable[[str], None]
@@ -105,28 +107,24 @@ class Target:
     baud: int
 
 
-def targets(robot: Any, joints: list[str] | None = None) -> list[Target]:
+def targets(robot: RobotConfig, joints: list[str] | None = None) -> list[Target]:
     """The servos to set up, in the YAML's joint order (``joints``: only these); InputError for a joint the robot
     lacks or a baud rate its servos cannot be set to."""
-    from robogest.backends.base import get_backend_factory
-
     bus = robot.bus
-    proto = protocol_name(bus.family, bus.protocol)
+    if bus is None:
+        raise ConfigError(f"{robot.path or robot.name}: no bus section, so no servos to set up; add one")
+    proto = ServoProtocol.of_bus(bus.family, bus.protocol)
     baud_register_value(proto, bus.baudrate)  # raises before anything is written
     unknown = [j for j in joints or [] if j not in robot.joint_names]
     if unknown:
         raise InputError(f"robot {robot.name} has no joints {unknown}; its joints: {', '.join(robot.joint_names)}")
-    lookup = getattr(get_backend_factory(bus.family), "lookup_model", None)
+    numbers = model_numbers(bus)  # None: compared by name; `robots validate` reports the unknown model
     out = []
     for joint in robot.joint_names:
         if joints and joint not in joints:
             continue
         s = bus.servos[joint]
-        try:
-            number = lookup(s.model, bus.protocol).number if lookup else None
-        except ConfigError:
-            number = None  # compared by name; `robots validate` reports the unknown model
-        out.append(Target(joint, s.id, s.model, number, bus.baudrate))
+        out.append(Target(joint, s.id, s.model, numbers[joint], bus.baudrate))
     return out
 
 
@@ -153,7 +151,9 @@ def interrupted(message: str, signum: int = signal.SIGINT) -> KeyboardInterrupt:
     return e
 
 
-def lone_servo(port: str, proto: str, target: Target, max_id: int, progress: Any = None) -> FoundServo | str:
+def lone_servo(
+    port: str, proto: ServoProtocol, target: Target, max_id: int, progress: Progress | None = None
+) -> FoundServo | str:
     """The one servo on the bus at any id and baud rate, or why not (a line for the user): none answers, more than
     one does, or it is another model than the YAML's."""
     found = scan(port, [proto], list(dict.fromkeys([target.baud, *COMMON_BAUDS[proto]])), max_id=max_id,
@@ -173,14 +173,14 @@ def lone_servo(port: str, proto: str, target: Target, max_id: int, progress: Any
     return f
 
 
-def assign(port: str, proto: str, f: FoundServo, target: Target) -> None:
+def assign(port: str, proto: ServoProtocol, f: FoundServo, target: Target) -> None:
     """Write ``target``'s id and baud rate into the servo ``f`` (torque off; Feetech: EEPROM unlocked for it and
     locked again as it was), then check it answers at both. BackendError naming where it answers when not."""
-    with ServoLink(port, proto, f.baud) as link:
-        link.write(f.id, link.reg("TORQUE_ENABLE"), 0)
-        lock = link.reg("LOCK") if proto in ("sts", "scs") else None  # Feetech: Lock 0 = EEPROM writes are kept
+    with Transport(port, proto, f.baud) as link:
+        link.write(f.id, link.wire.reg("TORQUE_ENABLE"), 0)
+        lock = link.wire.reg("LOCK") if proto.family == "feetech" else None  # Feetech: Lock 0 = EEPROM writes are kept
         was = link.read(f.id, lock) if lock is not None else 0
-        if was:
+        if was and lock is not None:
             link.write(f.id, lock, 0)
         sid = f.id
         for reg, value, new_sid in (
@@ -190,7 +190,7 @@ def assign(port: str, proto: str, f: FoundServo, target: Target) -> None:
             if (reg == "ID" and f.id == target.id) or (reg == "BAUD_RATE" and f.baud == target.baud):
                 continue
             try:  # the reply may come from the new id, or at the new baud rate: checked below instead
-                err = link.write(sid, link.reg(reg), value, attempts=1)
+                err = link.write(sid, link.wire.reg(reg), value, attempts=1)
             except BackendError:
                 err = 0
             if err:
@@ -200,42 +200,43 @@ def assign(port: str, proto: str, f: FoundServo, target: Target) -> None:
                 )
             sid = new_sid
             if reg == "ID":
-                link.read(sid, link.reg("MODEL_NUMBER"))  # answers at its new id, or raises
+                link.read(sid, link.wire.reg("MODEL_NUMBER"))  # answers at its new id, or raises
     time.sleep(0.05)  # the servo switches its baud rate after the reply
-    with ServoLink(port, proto, target.baud) as link:
-        if link.read(target.id, link.reg("ID")) != target.id:
+    with Transport(port, proto, target.baud) as link:
+        if link.read(target.id, link.wire.reg("ID")) != target.id:
             raise BackendError(f"servo id {target.id}: its ID register does not read {target.id}")
-        if was:
+        if was and lock is not None:
             link.write(target.id, lock, was)
 
 
-def where_now(port: str, proto: str, f: FoundServo, target: Target) -> str:
+def where_now(port: str, proto: ServoProtocol, f: FoundServo, target: Target) -> str:
     """Which settings the servo answers with now: its old ones, the new ones, or the new id at the old baud rate."""
     for sid, baud, what in (
         (target.id, target.baud, "its new settings"),
         (f.id, f.baud, "its old settings"),
         (target.id, f.baud, "the new id but its old baud rate"),
     ):
-        with contextlib.suppress(BackendError, InputError), ServoLink(port, proto, baud) as link:
-            link.read(sid, link.reg("MODEL_NUMBER"), attempts=2)
+        with contextlib.suppress(BackendError, InputError), Transport(port, proto, baud) as link:
+            link.read(sid, link.wire.reg("MODEL_NUMBER"), attempts=2)
             return f"{what} (id {sid} at {baud} baud)"
     return "no answer at its old or new settings"
 
 
 def setup_servos(
     port: str,
-    robot: Any,
+    robot: RobotConfig,
     ask: Ask,
     say: Say,
     *,
     joints: list[str] | None = None,
     max_id: int = 252,
-    progress: Any = None,
+    progress: Progress | None = None,
 ) -> list[str]:
     """Guide the user through connecting each joint's servo alone and write its id and baud rate (module docstring).
     Returns the joints set up. A Ctrl-C leaves the servo being written old or new, never half, and says which."""
-    proto = protocol_name(robot.bus.family, robot.bus.protocol)
-    todo = targets(robot, joints)
+    todo = targets(robot, joints)  # raises for a robot without a bus section
+    assert robot.bus is not None
+    proto = ServoProtocol.of_bus(robot.bus.family, robot.bus.protocol)
     done: list[str] = []
     for t in todo:
         rest = ", ".join(x.joint for x in todo[len(done) :])

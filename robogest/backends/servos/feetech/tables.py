@@ -4,11 +4,14 @@ big-endian). Enum value is ``(address, size_bytes)``. Source: Feetech STS/SMS an
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
 from enum import Enum
 
+from robogest.backends.servos.protocol import ServoModel, ServoProtocol
+from robogest.backends.servos.wire import Register
 
-class STSReg(Enum):
+
+class STSReg(Register):
     FIRMWARE_MAJOR_VERSION = (0, 1)
     FIRMWARE_MINOR_VERSION = (1, 1)
     MODEL_NUMBER = (3, 2)
@@ -57,16 +60,8 @@ class STSReg(Enum):
     MOVING = (66, 1)
     PRESENT_CURRENT = (69, 2)
 
-    @property
-    def addr(self) -> int:
-        return self.value[0]
 
-    @property
-    def size(self) -> int:
-        return self.value[1]
-
-
-class SCSReg(Enum):
+class SCSReg(Register):
     FIRMWARE_MAJOR_VERSION = (0, 1)
     FIRMWARE_MINOR_VERSION = (1, 1)
     MODEL_NUMBER = (3, 2)
@@ -94,17 +89,9 @@ class SCSReg(Enum):
     STATUS = (65, 1)
     MOVING = (66, 1)
 
-    @property
-    def addr(self) -> int:
-        return self.value[0]
-
-    @property
-    def size(self) -> int:
-        return self.value[1]
-
 
 #: Sign-magnitude encodings: register -> sign bit (STS quirk; SCS positions are unsigned).
-STS_SIGN_BITS = {
+STS_SIGN_BITS: dict[Enum, int] = {
     STSReg.HOMING_OFFSET: 11,
     STSReg.GOAL_POSITION: 15,
     STSReg.GOAL_VELOCITY: 15,
@@ -113,7 +100,7 @@ STS_SIGN_BITS = {
     STSReg.PRESENT_LOAD: 10,
     STSReg.PRESENT_CURRENT: 15,
 }
-SCS_SIGN_BITS = {SCSReg.PRESENT_VELOCITY: 15, SCSReg.PRESENT_LOAD: 10}
+SCS_SIGN_BITS: dict[Enum, int] = {SCSReg.PRESENT_VELOCITY: 15, SCSReg.PRESENT_LOAD: 10}
 
 #: Status error bits (same layout as Dynamixel Protocol 1.0).
 FT_ERRORS = {0x01: "input voltage", 0x02: "angle sensor", 0x04: "overheating", 0x08: "overcurrent",
@@ -122,28 +109,19 @@ FT_ERRORS = {0x01: "input voltage", 0x02: "angle sensor", 0x04: "overheating", 0
 FT_BAUDRATES = {0: 1_000_000, 1: 500_000, 2: 250_000, 3: 128_000, 4: 115_200, 5: 57_600, 6: 38_400, 7: 19_200}
 
 
-@dataclass(frozen=True)
-class FtModel:
-    name: str
-    number: int
-    protocol_end: int  #: 0 = STS/SMS little-endian, 1 = SCS big-endian
-    ticks_per_rev: float
-    centre_tick: int
-    max_tick: int
-    #: Largest value of the Goal Velocity register (the speed cap; its unit is one position step per second).
-    speed_max_units: int = 32767
-    #: Unit of the Acceleration register (address 41, RAM) in position steps/s², and its largest value: 100 steps/s²,
-    #: 0-254 on STS/SMS (Feetech ST3215 memory table: "10 corresponds to 1000 steps per second squared"); 0 on SCS,
-    #: where Feetech's own SCSCL library documents no acceleration register (its WritePosEx drops the argument).
-    accel_unit_steps_s2: float = 100.0
-    accel_max_units: int = 254
+#: Feetech speeds are in position steps per second: the speed-cap register (Goal Velocity) counts steps/s, the
+#: Acceleration register (address 41, RAM) 100 steps/s², 0-254 on STS/SMS (Feetech ST3215 memory table: "10
+#: corresponds to 1000 steps per second squared"); SCS models have none (Feetech's own SCSCL library documents no
+#: acceleration register; its WritePosEx drops the argument).
+_STEP_RAD = 2 * math.pi / 4096
+_SCS_STEP_RAD = 2 * math.pi / (1024 * 360 / 300)
+_STS, _SCS = ServoProtocol.STS, ServoProtocol.SCS
 
-
-MODELS: dict[str, FtModel] = {
+MODELS: dict[str, ServoModel] = {
     m.name: m
     for m in (
-        FtModel("STS3215", 777, 0, 4096, 2048, 4095),
-        FtModel("STS3250", 2825, 0, 4096, 2048, 4095),
-        FtModel("SCS0009", 1284, 1, 1024 * 360 / 300, 512, 1023, 1023, 0.0, 0),
+        ServoModel("STS3215", 777, _STS, 4096, 2048, 4095, _STEP_RAD, 32767, 100.0 * _STEP_RAD, 254),
+        ServoModel("STS3250", 2825, _STS, 4096, 2048, 4095, _STEP_RAD, 32767, 100.0 * _STEP_RAD, 254),
+        ServoModel("SCS0009", 1284, _SCS, 1024 * 360 / 300, 512, 1023, _SCS_STEP_RAD, 1023),
     )
 }

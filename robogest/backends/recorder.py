@@ -1,4 +1,5 @@
-"""Video of a simulation: a frame rendered whenever simulated time reaches the next frame time, encoded on a second
+"""What watches a simulation: the interactive viewer (:class:`ViewerObserver`) and its video, a frame rendered
+whenever simulated time reaches the next frame time, encoded on a second
 thread.
 
 Rendering stays in the simulation's thread (MuJoCo's GL context is current there); H.264 encoding (colour
@@ -19,7 +20,8 @@ import mujoco
 import numpy as np
 
 from robogest.backends import render as _render
-from robogest.errors import RobogestError
+from robogest.errors import MissingDependencyError, RobogestError
+from robogest.media.video import VideoWriter
 from robogest.robot.config import RobotConfig
 
 #: Frames waiting for the encoder at most: enough to ride out a slow frame, little memory (2.7 MB a 720p frame).
@@ -55,7 +57,7 @@ class VideoRecorder:
     robot : RobotConfig
         For the framing camera of a scene without one of its own.
     path : str or Path
-        Output ``.mp4``, written atomically (see :class:`~robogest.backends.render.VideoWriter`).
+        Output ``.mp4``, written atomically (see :class:`~robogest.media.video.VideoWriter`).
     settings : VideoSettings
         Frame size and render options (:func:`~robogest.backends.render.video_settings`).
     fps : int
@@ -78,7 +80,7 @@ class VideoRecorder:
         w, h = settings.width, settings.height
         self.settings = settings
         self.stats = VideoStats()
-        self.writer = _render.VideoWriter(path, w, h, fps, audio, audio_sr)
+        self.writer = VideoWriter(path, w, h, fps, audio, audio_sr)
         self.frame_dt = 1.0 / fps
         self.half_step = 0.5 * float(model.opt.timestep)
         self.next_t = 0.0
@@ -105,6 +107,8 @@ class VideoRecorder:
         if data.time < self.next_t - self.half_step:
             return
         self._raise_if_failed()
+        if self.renderer is None:
+            raise RobogestError("the video recorder was released; no more frames can be rendered")
         self.stats.frame_times_s.append(float(data.time))
         t0 = time.perf_counter()
         self.renderer.update_scene(data, camera=self.cam)
@@ -158,3 +162,21 @@ class VideoRecorder:
         if self.renderer is not None:
             self.renderer.close()
             self.renderer = None
+
+
+class ViewerObserver:
+    """The interactive viewer, synced at about 60 Hz of simulated time; closing it only stops the display."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        from mujoco import viewer as mj_viewer
+
+        try:
+            self.viewer = mj_viewer.launch_passive(model, data)
+        except Exception as e:
+            raise MissingDependencyError(f"cannot open the MuJoCo viewer ({e}); is a display available?") from None
+        self.next_t = 0.0
+
+    def __call__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        if data.time >= self.next_t and self.viewer.is_running():
+            self.viewer.sync()
+            self.next_t = data.time + 1.0 / 60.0

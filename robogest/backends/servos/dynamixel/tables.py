@@ -7,11 +7,13 @@ resolution, centre tick) live in :data:`MODELS`. Source: ROBOTIS e-manual.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from enum import Enum
 
+from robogest.backends.servos.protocol import ServoModel, ServoProtocol
+from robogest.backends.servos.wire import Register
 
-class XReg(Enum):
+
+class XReg(Register):
     """X-series (XL430-W250, XM430-W350, XL330-M288), Protocol 2.0."""
 
     MODEL_NUMBER = (0, 2)
@@ -68,16 +70,8 @@ class XReg(Enum):
     PRESENT_TEMPERATURE = (146, 1)
     BACKUP_READY = (147, 1)
 
-    @property
-    def addr(self) -> int:
-        return self.value[0]
 
-    @property
-    def size(self) -> int:
-        return self.value[1]
-
-
-class P1Reg(Enum):
+class P1Reg(Register):
     """AX-12A / MX-28 on Protocol 1.0 (the registers both share)."""
 
     MODEL_NUMBER = (0, 2)
@@ -110,20 +104,12 @@ class P1Reg(Enum):
     PUNCH = (48, 2)
     GOAL_ACCELERATION = (73, 1)  #: MX-28 only (AX-12A has no acceleration register)
 
-    @property
-    def addr(self) -> int:
-        return self.value[0]
-
-    @property
-    def size(self) -> int:
-        return self.value[1]
-
 
 #: Registers holding signed values: two's complement on P2; sign-magnitude bit on P1.
 X_SIGNED = {XReg.HOMING_OFFSET, XReg.GOAL_PWM, XReg.GOAL_VELOCITY, XReg.PRESENT_PWM, XReg.PRESENT_LOAD,
             XReg.PRESENT_VELOCITY, XReg.PRESENT_POSITION, XReg.GOAL_POSITION, XReg.VELOCITY_TRAJECTORY,
             XReg.POSITION_TRAJECTORY, XReg.GOAL_CURRENT}  # fmt: skip
-P1_SIGN_BITS = {P1Reg.PRESENT_SPEED: 10, P1Reg.PRESENT_LOAD: 10}
+P1_SIGN_BITS: dict[Enum, int] = {P1Reg.PRESENT_SPEED: 10, P1Reg.PRESENT_LOAD: 10}
 
 #: Protocol 2.0 Hardware Error Status bits.
 X_HW_ERRORS = {0x01: "input voltage", 0x04: "overheating", 0x08: "motor encoder", 0x10: "electrical shock",
@@ -139,37 +125,28 @@ X_STATUS_ERRORS = {1: "result fail", 2: "instruction error", 3: "CRC error", 4: 
 X_BAUDRATES = {0: 9600, 1: 57600, 2: 115200, 3: 1_000_000, 4: 2_000_000, 5: 3_000_000, 6: 4_000_000, 7: 4_500_000}
 
 
-@dataclass(frozen=True)
-class DxlModel:
-    """Facts about one model the backend needs to convert and to check ``connect``."""
-
-    name: str
-    number: int
-    protocol: float
-    ticks_per_rev: float
-    centre_tick: int
-    max_tick: int
-    #: Speed-cap register (X: Profile Velocity; AX/MX: Moving Speed) unit in rev/min, and its largest value.
-    speed_unit_rpm: float
-    speed_max_units: int
-    #: Acceleration register (X: Profile Acceleration in velocity-based profile mode; MX-28: Goal Acceleration) unit
-    #: in rad/s², and its largest value; 0 for AX-12A, which has none.
-    accel_unit_rad_s2: float = 0.0
-    accel_max_units: int = 0
-
-
 #: X-series Profile Acceleration unit: 214.577 rev/min² (e-manual, velocity-based profile), in rad/s².
 X_ACCEL_UNIT_RAD_S2 = 214.577 * 2 * math.pi / 3600.0
 #: MX-28 (Protocol 1.0) Goal Acceleration unit: 8.583 °/s² (e-manual), in rad/s²; values 0-254.
 MX_ACCEL_UNIT_RAD_S2 = math.radians(8.583)
 
-MODELS: dict[str, DxlModel] = {
+
+def _rpm(units_rpm: float) -> float:
+    """A speed-cap register unit (X: Profile Velocity; AX/MX: Moving Speed) in rev/min, as rad/s."""
+    return units_rpm * 2 * math.pi / 60
+
+
+_P2, _P1 = ServoProtocol.DXL2, ServoProtocol.DXL1
+
+#: Acceleration register (X: Profile Acceleration in velocity-based profile mode; MX-28: Goal Acceleration): unit in
+#: rad/s² and largest value; AX-12A has none.
+MODELS: dict[str, ServoModel] = {
     m.name: m
     for m in (
-        DxlModel("XL430-W250", 1060, 2.0, 4096, 2048, 4095, 0.229, 32767, X_ACCEL_UNIT_RAD_S2, 32767),
-        DxlModel("XM430-W350", 1020, 2.0, 4096, 2048, 4095, 0.229, 32767, X_ACCEL_UNIT_RAD_S2, 32767),
-        DxlModel("XL330-M288", 1200, 2.0, 4096, 2048, 4095, 0.229, 32767, X_ACCEL_UNIT_RAD_S2, 32767),
-        DxlModel("AX-12A", 12, 1.0, 1024 * 360 / 300, 512, 1023, 0.111, 1023),
-        DxlModel("MX-28", 29, 1.0, 4096, 2048, 4095, 0.114, 1023, MX_ACCEL_UNIT_RAD_S2, 254),
+        ServoModel("XL430-W250", 1060, _P2, 4096, 2048, 4095, _rpm(0.229), 32767, X_ACCEL_UNIT_RAD_S2, 32767),
+        ServoModel("XM430-W350", 1020, _P2, 4096, 2048, 4095, _rpm(0.229), 32767, X_ACCEL_UNIT_RAD_S2, 32767),
+        ServoModel("XL330-M288", 1200, _P2, 4096, 2048, 4095, _rpm(0.229), 32767, X_ACCEL_UNIT_RAD_S2, 32767),
+        ServoModel("AX-12A", 12, _P1, 1024 * 360 / 300, 512, 1023, _rpm(0.111), 1023),
+        ServoModel("MX-28", 29, _P1, 4096, 2048, 4095, _rpm(0.114), 1023, MX_ACCEL_UNIT_RAD_S2, 254),
     )
 }

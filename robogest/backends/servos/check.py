@@ -25,7 +25,7 @@ def servo_problems(robot: RobotConfig, yml: Path) -> list[Problem]:
     velocity limits the servo can keep up with."""
     if robot.bus is None:
         return []
-    from robogest.backends import get_backend_factory
+    from robogest.backends.base import get_backend_factory
 
     lookup = getattr(get_backend_factory(robot.bus.family), "lookup_model", None)
     if lookup is None:  # a plugin backend that publishes no model table
