@@ -16,6 +16,7 @@ from robogest.generators.learned.s2ag.config import S2AGConfig, mfcc_from_mel
 from robogest.generators.learned.s2ag.networks import F, S2AGNet, torch
 from robogest.generators.learned.s2ag.skeleton import N_EDGES, expmaps_to_directions
 from robogest.learn import config_with_overrides
+from robogest.learn.spec import ModelSpec
 
 
 def split_batch(speech, c: S2AGConfig):
@@ -46,7 +47,7 @@ def diversity_regulariser(gen, mfcc, text, poses, speaker, out, z):
     return torch.clamp(-pose_l1 / (z_l1 + 1e-5), min=-1000.0).mean()
 
 
-class S2AGSpec:
+class S2AGSpec(ModelSpec[S2AGConfig]):
     """The trainer's view of the model (:class:`robogest.learn.trainer.ModelSpec` + its optional GAN methods)."""
 
     name = "s2ag"
@@ -69,7 +70,7 @@ class S2AGSpec:
             dir_mean=tuple(map(float, dir_mean)),
         )
 
-    def make_windows(self, takes, norm, config: S2AGConfig, length: int, stride: int, store=None):
+    def make_windows(self, takes, norm, config: S2AGConfig, length: int, stride: int, store=None, cache_dir=None):
         """Windows of ``[normalised MFCC | text | speaker index]`` ``(N, L, 37 + D + 1)`` and mean-subtracted
         directions ``(N, L, 27)`` (``store``: :func:`slice_windows`); the trainer's exp-map normalisation ``norm``
         is not used."""
