@@ -107,6 +107,13 @@ class _Server:
         code, data = s.read(addr, length)
         return self.err_codes.get(code, 0), data
 
+    def read_each(self, ids: bytes, addr: int, length: int) -> None:
+        """A sync read: each present servo of ``ids`` answers with its own READ status packet, in that order."""
+        for i in ids:
+            s = self.bus._present(i)
+            if s is not None:
+                self.status(s, READ, *self.read(s, addr, length))
+
     def reg_write(self, s: SimServo, addr: int, data: bytes) -> tuple[int, bytes]:
         """Hold a checked write until ACTION."""
         code = s.check_write(addr, data)
@@ -169,11 +176,7 @@ class Protocol2Server(_Server):
     def _sync_read(self, pkt: framing.Packet) -> bool:
         p = pkt.params
         if len(p) >= 4:
-            addr, length = self._addr_length(p)
-            for i in p[4:]:
-                s = self.bus._present(i)
-                if s is not None:
-                    self.status(s, READ, *self.read(s, addr, length))
+            self.read_each(p[4:], *self._addr_length(p))
         return True
 
     def _fast_sync_read(self, pkt: framing.Packet) -> bool:
@@ -280,11 +283,7 @@ class Protocol1Server(_Server):
         p = pkt.params
         if self.bus.family != "feetech" or len(p) < 2:
             return False
-        addr, length = p[0], p[1]
-        for i in p[2:]:
-            s = self.bus._present(i)
-            if s is not None:
-                self.status(s, READ, *self.read(s, addr, length))
+        self.read_each(p[2:], p[0], p[1])
         return True
 
     def _bulk_read(self, pkt: framing.Packet) -> bool:
