@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from robogest.data.datasets import Take
     from robogest.data.prep import Normalization
     from robogest.learn.dist import Sync
+    from robogest.learn.trainer import TrainConfig
 
 #: The model's config dataclass (e.g. ``GesticulatorConfig``).
 C = TypeVar("C")
@@ -114,7 +115,7 @@ class ModelSpec(ABC, Generic[C]):
 
     # -- step hooks -------------------------------------------------------------------------------------------------
 
-    def make_optimizers(self, model: Any, train_config: Any, config: C) -> dict[str, Any]:
+    def make_optimizers(self, model: Any, train_config: TrainConfig, config: C) -> dict[str, Any]:
         """Named optimisers, all saved in and restored from checkpoints. Default: one Adam, ``"optimizer"``, at
         ``train_config.lr``, else the model config's ``lr`` (its paper's value), else 1e-4."""
         torch = require_torch()
