@@ -3,6 +3,7 @@
 #               sentence on the simulated humanoid
 #               -> out/demo.mp4 (video with the speech audio), out/demo.npz (command trajectory), out/demo.png
 #   make test   create .venv with everything (the dev extras include all others) and run the test suite (what CI runs)
+# While developing: make test-fast   the same without the end-to-end tests marked slow (under 3 minutes on 2 cores)
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -10,7 +11,7 @@ DEMO_TEXT ?= Hello! I am a small robot, and I move my arms when I speak. Do you 
 # Headless rendering through EGL (Mesa in software, or the GPU driver).
 export MUJOCO_GL ?= egl
 
-.PHONY: demo test install install-dev lint typecheck bench clean
+.PHONY: demo test test-fast install install-dev lint typecheck bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -36,6 +37,9 @@ demo: $(VENV)/.installed-demo
 
 test: $(VENV)/.installed-dev
 	$(BIN)/python -m pytest
+
+test-fast: $(VENV)/.installed-dev
+	$(BIN)/python -m pytest -m "not slow"
 
 lint: $(VENV)/.installed-dev
 	$(BIN)/ruff check . && $(BIN)/ruff format --check .

@@ -48,7 +48,8 @@ def config_with_overrides(cls: type, model: str, overrides: dict[str, Any], **fi
     values = {}
     for key, value in overrides.items():
         f = fields[key]
-        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
+        factory = f.default_factory  # every model config field has a default or a factory
+        default = f.default if f.default is not dataclasses.MISSING else factory() if callable(factory) else None
         values[key] = _coerce(model, key, value, default)
     try:
         return cls(**{**values, **fixed})

@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 from robogest.errors import InputError
 from robogest.learn import require_torch
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -23,7 +27,7 @@ class DistInfo:
         return self.rank == 0
 
 
-def pick_device(pref: str = "auto", local_rank: int = 0):  # -> torch.device
+def pick_device(pref: str = "auto", local_rank: int = 0) -> Any:  # torch.device
     """``auto``: CUDA when available, else CPU; ``cuda`` without a GPU is an :class:`InputError`."""
     torch = require_torch()
     if pref not in ("auto", "cpu", "cuda"):
@@ -40,7 +44,7 @@ def pick_device(pref: str = "auto", local_rank: int = 0):  # -> torch.device
 DEFAULT_TIMEOUT_S = 7200.0
 
 
-def setup(device_pref: str = "auto", timeout_s: float = DEFAULT_TIMEOUT_S):  # -> tuple[DistInfo, torch.device]
+def setup(device_pref: str = "auto", timeout_s: float = DEFAULT_TIMEOUT_S) -> tuple[DistInfo, Any]:  # Any: torch.device
     """Initialise the process group when ``RANK`` and ``WORLD_SIZE`` are set (``torchrun``), else run alone.
 
     The backend is NCCL on CUDA and gloo on CPU. ``timeout_s``: how long a collective (a barrier included) waits
@@ -76,18 +80,21 @@ def barrier(info: DistInfo) -> None:
         dist.barrier()
 
 
-def builder_first(info: DistInfo, build, read):
+def builder_first(info: DistInfo, build: Callable[[], T], read: Callable[[], T]) -> T:
     """``build()`` on each node's first process (``LOCAL_RANK`` 0), then ``read()`` on the others once it is done.
 
     For data written once to local disk and memory-mapped by every rank (feature cache, training windows): the
     other ranks neither compute nor hold a copy of their own. Returns what this process's call returned.
     """
-    result = build() if info.local_rank == 0 else None
+    if info.local_rank == 0:
+        result = build()
+        barrier(info)
+        return result
     barrier(info)
-    return result if info.local_rank == 0 else read()
+    return read()
 
 
-def all_reduce_mean(values: list[float], info: DistInfo, device) -> list[float]:
+def all_reduce_mean(values: list[float], info: DistInfo, device: Any) -> list[float]:
     """Mean of ``values`` over all ranks (identity when not distributed)."""
     if not info.enabled or info.world_size == 1:
         return list(values)
@@ -96,7 +103,8 @@ def all_reduce_mean(values: list[float], info: DistInfo, device) -> list[float]:
 
     t = torch.tensor(values, dtype=torch.float64, device=device)
     dist.all_reduce(t)
-    return (t / info.world_size).tolist()
+    means: list[float] = (t / info.world_size).tolist()
+    return means
 
 
 class Sync:
@@ -109,13 +117,13 @@ class Sync:
     def is_main(self) -> bool:
         return self.info.is_main
 
-    def all_reduce_sum_(self, t) -> None:
+    def all_reduce_sum_(self, t: Any) -> None:
         """``t`` becomes its sum over ranks, the same on every rank."""
         import torch.distributed as dist
 
         dist.all_reduce(t)
 
-    def broadcast_(self, t, src: int = 0) -> None:
+    def broadcast_(self, t: Any, src: int = 0) -> None:
         """``t`` becomes rank ``src``'s."""
         import torch.distributed as dist
 

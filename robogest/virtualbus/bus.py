@@ -25,27 +25,12 @@ import numpy as np
 
 from robogest.errors import ConfigError
 from robogest.fileio import atomic_path
-from robogest.robot.config import RobotConfig
+from robogest.robot.config import RobotConfig, ServoConfig
 from robogest.virtualbus import framing
 from robogest.virtualbus.faults import FaultSpec
-from robogest.virtualbus.servo import ERR_ACCESS, ERR_LENGTH, ERR_RANGE, SimServo, ThermalModel
+from robogest.virtualbus.protocol import Protocol1Server, Protocol2Server, name_of
+from robogest.virtualbus.servo import SimServo, ThermalModel
 from robogest.virtualbus.tables import ModelSpec, find_model
-
-BROADCAST = 0xFE
-# instruction codes (shared numbering across protocols where they exist)
-PING, READ, WRITE, REG_WRITE, ACTION, FACTORY_RESET, REBOOT, CLEAR = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x08, 0x10
-SYNC_READ, SYNC_WRITE, FAST_SYNC_READ, BULK_READ, BULK_WRITE = 0x82, 0x83, 0x8A, 0x92, 0x93
-_INST_NAMES = {
-    PING: "PING", READ: "READ", WRITE: "WRITE", REG_WRITE: "REG_WRITE", ACTION: "ACTION", REBOOT: "REBOOT",
-    FACTORY_RESET: "FACTORY_RESET", CLEAR: "CLEAR", SYNC_READ: "SYNC_READ", SYNC_WRITE: "SYNC_WRITE",
-    FAST_SYNC_READ: "FAST_SYNC_READ", BULK_READ: "BULK_READ", BULK_WRITE: "BULK_WRITE",
-}  # fmt: skip
-
-# Protocol 2.0 status error codes (low 7 bits) and alert bit; Protocol 1.0 / Feetech bits.
-_P2_ERR = {ERR_ACCESS: 0x07, ERR_RANGE: 0x04, ERR_LENGTH: 0x05}
-P2_INSTRUCTION_ERROR, P2_CRC_ERROR, P2_ALERT = 0x02, 0x03, 0x80
-_P1_ERR = {ERR_ACCESS: 0x40, ERR_RANGE: 0x08, ERR_LENGTH: 0x08}
-P1_CHECKSUM_ERROR, P1_INSTRUCTION_ERROR = 0x10, 0x40
 
 _SPEEDS = {
     getattr(termios, f"B{b}"): b
@@ -127,7 +112,7 @@ class VirtualBus:
                 servo.flash = bytes(servo.mem[: spec.eeprom_end])
             tpr = spec.ticks_per_rad()
 
-            def to_ticks(q: float, sc: Any = sc, spec: ModelSpec = spec, tpr: float = tpr) -> float:
+            def to_ticks(q: float, sc: ServoConfig = sc, spec: ModelSpec = spec, tpr: float = tpr) -> float:
                 return spec.centre_tick + (sc.direction * q * sc.gear_ratio + sc.zero_offset_rad) * tpr
 
             start = min(max(round(to_ticks(q0[j])), 0), spec.max_tick)
@@ -142,9 +127,9 @@ class VirtualBus:
         self._min_ticks = np.array([e[2] for e in entries], dtype=np.int64)
         self._max_ticks = np.array([e[3] for e in entries], dtype=np.int64)
 
-        self._parser: framing.Parser1 | framing.Parser2 = (
-            framing.Parser2() if self.family == "dynamixel" and self.protocol == 2.0 else framing.Parser1()
-        )
+        p2 = self.family == "dynamixel" and self.protocol == 2.0
+        self._parser: framing.Parser1 | framing.Parser2 = framing.Parser2() if p2 else framing.Parser1()
+        self._server = Protocol2Server(self) if p2 else Protocol1Server(self)
         self._master: int | None = None
         self._slave: int | None = None
         self.port = ""
@@ -240,10 +225,13 @@ class VirtualBus:
             self._flush_out()
             due = self._next_due() or next_sample
             wait = max(0.0, min(next_sample - time.monotonic(), due - time.monotonic(), 0.01))
+            master = self._master
+            if master is None:  # closed (an injected disconnect)
+                return
             try:
-                ready, _, _ = select.select([self._master], [], [], wait)
-                data = os.read(self._master, 65536) if ready else b""
-            except (OSError, ValueError, TypeError):
+                ready, _, _ = select.select([master], [], [], wait)
+                data = os.read(master, 65536) if ready else b""
+            except (OSError, ValueError):
                 return
             now = time.monotonic()
             if not data:
@@ -329,6 +317,8 @@ class VirtualBus:
 
     def _custom_speed(self) -> int | None:
         """A rate set with BOTHER (pyserial does so for 250000, 128000, ...), read with Linux's TCGETS2."""
+        if self._slave is None:
+            return None
         try:
             import fcntl
 
@@ -372,11 +362,11 @@ class VirtualBus:
         injected delay holds back every reply queued behind it (a stalled bus)."""
         f = self.faults
         if f.noreply and self._rng.random() < f.noreply:
-            self._note(f"injected: no reply from id {servo_id} to {_INST_NAMES.get(inst, hex(inst))}")
+            self._note(f"injected: no reply from id {servo_id} to {name_of(inst)}")
             return
         if f.badcrc and self._rng.random() < f.badcrc:
             pkt = pkt[:-1] + bytes([pkt[-1] ^ 0x5A])
-            self._note(f"injected: bad checksum from id {servo_id} to {_INST_NAMES.get(inst, hex(inst))}")
+            self._note(f"injected: bad checksum from id {servo_id} to {name_of(inst)}")
         held = bool(f.delay_p) and self._rng.random() < f.delay_p
         if held:
             delay_s += self._rng.uniform(f.delay_min_s, f.delay_max_s)
@@ -401,203 +391,9 @@ class VirtualBus:
     def _serve(self, pkt: framing.Packet) -> None:
         f = self.faults
         if f.drop and self._rng.random() < f.drop:
-            self._note(f"injected: instruction {_INST_NAMES.get(pkt.inst, hex(pkt.inst))} to id {pkt.servo_id} lost")
+            self._note(f"injected: instruction {name_of(pkt.inst)} to id {pkt.servo_id} lost")
             return
-        if self.family == "dynamixel" and self.protocol == 2.0:
-            self._serve2(pkt)
-        else:
-            self._serve1(pkt)
-
-    # Protocol 2.0 ---------------------------------------------------------------------------------
-    def _status2(self, servo: SimServo, inst: int, code: int, params: bytes = b"") -> None:
-        level = servo.get("status_level")
-        if inst != PING and (level == 0 or (level == 1 and inst not in (READ, SYNC_READ, BULK_READ))):
-            return
-        err = code | (P2_ALERT if servo.hw_faults else 0)
-        self._emit(servo.id, framing.build2(servo.id, err, params), inst, servo.return_delay_s)
-
-    def _serve2(self, pkt: framing.Packet) -> None:
-        sid, inst, p = pkt.servo_id, pkt.inst, pkt.params
-        if not pkt.crc_ok:
-            self.stats["bad_checksum"] += 1
-            self._note(f"detected: bad CRC in instruction to id {sid}")
-            servo = self._present(sid)
-            if servo is not None:
-                self._status2(servo, inst, P2_CRC_ERROR)
-            return
-        if inst == PING:
-            targets = [s for s in self.servos if self._present(s.id)] if sid == BROADCAST else [self._present(sid)]
-            for s in sorted((t for t in targets if t is not None), key=lambda s: s.id):
-                info = s.spec.model_number.to_bytes(2, "little") + bytes([s.get("Firmware_Version")])
-                self._status2(s, PING, 0, info)
-            return
-        if inst in (SYNC_WRITE, SYNC_READ, FAST_SYNC_READ):
-            if len(p) < 4:
-                return
-            addr, length = int.from_bytes(p[0:2], "little"), int.from_bytes(p[2:4], "little")
-            if inst == SYNC_WRITE:
-                step = 1 + length
-                for i in range(4, len(p) - step + 1, step):
-                    s = self._present(p[i])
-                    if s is not None:
-                        self._write_checked(s, addr, p[i + 1 : i + step])
-                return
-            ids = list(p[4:])
-            if inst == SYNC_READ:
-                for i in ids:
-                    s = self._present(i)
-                    if s is not None:
-                        code, data = s.read(addr, length)
-                        self._status2(s, READ, _P2_ERR.get(code, 0), data)
-                return
-            self._fast_sync_read(ids, addr, length)
-            return
-        if inst in (BULK_READ, BULK_WRITE):
-            i = 0
-            while i + 5 <= len(p):
-                s = self._present(p[i])
-                addr, length = int.from_bytes(p[i + 1 : i + 3], "little"), int.from_bytes(p[i + 3 : i + 5], "little")
-                if inst == BULK_READ:
-                    if s is not None:
-                        code, data = s.read(addr, length)
-                        self._status2(s, READ, _P2_ERR.get(code, 0), data)
-                    i += 5
-                else:
-                    if s is not None:
-                        self._write_checked(s, addr, p[i + 5 : i + 5 + length])
-                    i += 5 + length
-            return
-        targets = self.servos if sid == BROADCAST else [s for s in [self._present(sid)] if s is not None]
-        for s in targets:
-            if sid == BROADCAST and s.vanished:
-                continue
-            code = 0
-            data = b""
-            if inst == READ and len(p) == 4:
-                c, data = s.read(int.from_bytes(p[0:2], "little"), int.from_bytes(p[2:4], "little"))
-                code = _P2_ERR.get(c, 0)
-            elif inst == WRITE and len(p) >= 3:
-                code = _P2_ERR.get(self._write_checked(s, int.from_bytes(p[0:2], "little"), p[2:]), 0)
-            elif inst == REG_WRITE and len(p) >= 3:
-                addr = int.from_bytes(p[0:2], "little")
-                c = s.check_write(addr, p[2:])
-                code = _P2_ERR.get(c, 0)
-                if not c:
-                    s.registered = (addr, bytes(p[2:]))
-            elif inst == ACTION:
-                if s.registered is None:
-                    code = P2_INSTRUCTION_ERROR
-                else:
-                    s.write(*s.registered)
-                    s.registered = None
-            elif inst == REBOOT:
-                s.reboot()
-            elif inst == FACTORY_RESET:
-                code = P2_INSTRUCTION_ERROR if s.torque_on else 0
-            elif inst == CLEAR:
-                code = 0
-            else:
-                code = P2_INSTRUCTION_ERROR
-            if sid != BROADCAST:
-                self._status2(s, inst, code, data)
-
-    def _fast_sync_read(self, ids: list[int], addr: int, length: int) -> None:
-        """One status packet for all servos: per servo ``ERR ID DATA CRC``; the last CRC closes the packet."""
-        servos = [self._present(i) for i in ids]
-        if any(s is None for s in servos):
-            self._note("fast sync read: a servo is missing, packet not completed")
-            return
-        pkt = bytearray([0xFF, 0xFF, 0xFD, 0x00, BROADCAST, 0, 0, 0x55])
-        pkt[5:7] = (1 + (length + 4) * len(servos)).to_bytes(2, "little")
-        for k, s in enumerate(servos):
-            assert s is not None
-            code, data = s.read(addr, length)
-            pkt += bytes([_P2_ERR.get(code, 0) | (P2_ALERT if s.hw_faults else 0), s.id]) + data
-            if k < len(servos) - 1:
-                pkt += crc16_bytes(pkt)
-        pkt += crc16_bytes(pkt)
-        self._emit(BROADCAST, bytes(pkt), FAST_SYNC_READ, servos[0].return_delay_s if servos else 0.0)
-
-    def _write_checked(self, s: SimServo, addr: int, data: bytes) -> int:
-        code = s.write(addr, bytes(data))
-        if code:
-            what = {ERR_ACCESS: "access error", ERR_RANGE: "range error", ERR_LENGTH: "length error"}[code]
-            self._note(f"detected: id {s.id} refused write of {len(data)} bytes at address {addr} ({what})")
-        return code
-
-    # Protocol 1.0 and Feetech ---------------------------------------------------------------------
-    def _status1(self, servo: SimServo, inst: int, err: int, params: bytes = b"") -> None:
-        level = servo.get("status_level")
-        if self.family == "feetech":
-            if inst not in (PING, READ) and level == 0:
-                return
-        elif inst != PING and (level == 0 or (level == 1 and inst != READ)):
-            return
-        pkt = framing.build1(servo.id, err | servo.hw_error_bits_p1(), params)
-        self._emit(servo.id, pkt, inst, servo.return_delay_s)
-
-    def _serve1(self, pkt: framing.Packet) -> None:
-        sid, inst, p = pkt.servo_id, pkt.inst, pkt.params
-        if not pkt.crc_ok:
-            self.stats["bad_checksum"] += 1
-            self._note(f"detected: bad checksum in instruction to id {sid}")
-            s = self._present(sid)
-            if s is not None:
-                self._status1(s, inst, P1_CHECKSUM_ERROR)
-            return
-        if inst == SYNC_WRITE and len(p) >= 2:
-            addr, length = p[0], p[1]
-            for i in range(2, len(p) - length, 1 + length):
-                s = self._present(p[i])
-                if s is not None:
-                    self._write_checked(s, addr, p[i + 1 : i + 1 + length])
-            return
-        if inst == SYNC_READ and self.family == "feetech" and len(p) >= 2:
-            addr, length = p[0], p[1]
-            for i in p[2:]:
-                s = self._present(i)
-                if s is not None:
-                    code, data = s.read(addr, length)
-                    self._status1(s, READ, _P1_ERR.get(code, 0), data)
-            return
-        if inst == BULK_READ and self.family == "dynamixel" and len(p) >= 1:
-            for i in range(1, len(p) - 2, 3):  # 0x00, then (length, id, address) per servo
-                s = self._present(p[i + 1])
-                if s is not None:
-                    code, data = s.read(p[i + 2], p[i])
-                    self._status1(s, READ, _P1_ERR.get(code, 0), data)
-            return
-        if sid == BROADCAST and inst == PING:
-            for s in self.servos:
-                if self._present(s.id):
-                    self._status1(s, PING, 0)
-            return
-        targets = self.servos if sid == BROADCAST else [s for s in [self._present(sid)] if s is not None]
-        for s in targets:
-            err, data = 0, b""
-            if inst == PING:
-                pass
-            elif inst == READ and len(p) == 2:
-                code, data = s.read(p[0], p[1])
-                err = _P1_ERR.get(code, 0)
-            elif inst == WRITE and len(p) >= 2:
-                err = _P1_ERR.get(self._write_checked(s, p[0], p[1:]), 0)
-            elif inst == REG_WRITE and len(p) >= 2:
-                code = s.check_write(p[0], p[1:])
-                err = _P1_ERR.get(code, 0)
-                if not code:
-                    s.registered = (p[0], bytes(p[1:]))
-            elif inst == ACTION:
-                if s.registered is not None:
-                    s.write(*s.registered)
-                    s.registered = None
-                continue  # ACTION never answers
-            elif inst == FACTORY_RESET:
-                pass
-            else:
-                err = P1_INSTRUCTION_ERROR
-            if sid != BROADCAST:
-                self._status1(s, inst, err, data)
+        self._server.serve(pkt)
 
     # --- recording -------------------------------------------------------------------------------
     def record(self) -> dict[str, np.ndarray]:
@@ -635,9 +431,6 @@ class VirtualBus:
         """Write :meth:`record` as ``.npz`` atomically (temp file + rename)."""
         path = Path(path)
         with atomic_path(path, ".npz") as tmp:
-            np.savez(tmp, **self.record())
+            arrays: dict[str, Any] = self.record()  # Any: numpy's stub reads a ** mapping as its bool options
+            np.savez(tmp, **arrays)
         return path
-
-
-def crc16_bytes(data: bytes | bytearray) -> bytes:
-    return framing.crc16(data).to_bytes(2, "little")

@@ -84,6 +84,12 @@ def _R(name: str, addr: int, size: int, access: str = "R", default: int = 0, **k
     return Reg(name, addr, size, access == "RW", default, **kw)  # type: ignore[arg-type]
 
 
+#: Role -> register name where every family names the register alike.
+_COMMON_ROLES = {
+    "goal": "Goal_Position", "present": "Present_Position", "torque": "Torque_Enable", "load": "Present_Load",
+    "temperature": "Present_Temperature", "moving": "Moving", "id": "ID", "baud": "Baud_Rate",
+}  # fmt: skip
+
 # --- Dynamixel X-series, Protocol 2.0 --------------------------------------------------------------
 _X_BAUD = {0: 9600, 1: 57600, 2: 115200, 3: 1_000_000, 4: 2_000_000, 5: 3_000_000, 6: 4_000_000, 7: 4_500_000}
 
@@ -156,17 +162,10 @@ def _x_series(
 
 
 _X_ROLES = {
-    "goal": "Goal_Position",
-    "present": "Present_Position",
-    "torque": "Torque_Enable",
+    **_COMMON_ROLES,
     "velocity": "Present_Velocity",
-    "load": "Present_Load",
     "voltage": "Present_Input_Voltage",
-    "temperature": "Present_Temperature",
     "hw_error": "Hardware_Error_Status",
-    "moving": "Moving",
-    "id": "ID",
-    "baud": "Baud_Rate",
     "min": "Min_Position_Limit",
     "max": "Max_Position_Limit",
     "profile_velocity": "Profile_Velocity",
@@ -261,16 +260,9 @@ def _p1_table(number: int, fw: int, *, mx: bool) -> tuple[Reg, ...]:
 
 
 _P1_ROLES = {
-    "goal": "Goal_Position",
-    "present": "Present_Position",
-    "torque": "Torque_Enable",
+    **_COMMON_ROLES,
     "velocity": "Present_Speed",
-    "load": "Present_Load",
     "voltage": "Present_Voltage",
-    "temperature": "Present_Temperature",
-    "moving": "Moving",
-    "id": "ID",
-    "baud": "Baud_Rate",
     "min": "CW_Angle_Limit",
     "max": "CCW_Angle_Limit",
     "profile_velocity": "Moving_Speed",
@@ -395,16 +387,9 @@ def _scs_table(number: int) -> tuple[Reg, ...]:
 
 
 _FT_ROLES = {
-    "goal": "Goal_Position",
-    "present": "Present_Position",
-    "torque": "Torque_Enable",
+    **_COMMON_ROLES,
     "velocity": "Present_Velocity",
-    "load": "Present_Load",
     "voltage": "Present_Voltage",
-    "temperature": "Present_Temperature",
-    "moving": "Moving",
-    "id": "ID",
-    "baud": "Baud_Rate",
     "min": "Min_Position_Limit",
     "max": "Max_Position_Limit",
     "profile_velocity": "Goal_Velocity",

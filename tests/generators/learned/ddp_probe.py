@@ -44,11 +44,11 @@ def _wrap(module, name: str, before) -> None:
 
 _wrap(trainer, "_batches", lambda out, n, *_: RECORD["epochs"].append({"n": n, "batches": [b.tolist() for b in out]}))
 _wrap(trainer, "save_checkpoint", lambda _, ckpt, path: RECORD["saved"].append(Path(path).name))
-_wrap(trainer, "_evaluate", lambda _, spec, model, *a: RECORD["weights"].append(
-    float(sum(p.detach().double().sum() for p in model.parameters()))
+_wrap(trainer, "_evaluate", lambda _, run, *a: RECORD["weights"].append(
+    float(sum(p.detach().double().sum() for p in run.model.parameters()))
 ))  # fmt: skip
-_wrap(trainer, "_evaluate", lambda _, spec, model, *a: RECORD["state"].append(
-    {k: float(v.detach().double().sum()) for k, v in model.state_dict().items()}
+_wrap(trainer, "_evaluate", lambda _, run, *a: RECORD["state"].append(
+    {k: float(v.detach().double().sum()) for k, v in run.model.state_dict().items()}
 ))  # fmt: skip
 _wrap(datasets, "compute_take", lambda _, files, *a: RECORD["computed"].append(files.name))
 

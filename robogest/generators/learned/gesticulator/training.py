@@ -11,9 +11,10 @@ from robogest.generators.learned.gesticulator.model import (
     teacher_forcing_period,
 )
 from robogest.learn import config_with_overrides
+from robogest.learn.spec import ModelSpec
 
 
-class GesticulatorSpec:
+class GesticulatorSpec(ModelSpec[GesticulatorConfig]):
     """The trainer's view of the model (:class:`robogest.learn.trainer.ModelSpec`)."""
 
     name = "gesticulator"

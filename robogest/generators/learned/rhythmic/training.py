@@ -22,6 +22,7 @@ from robogest.generators.learned.rhythmic.model import RhythmicNet
 from robogest.generators.learned.rhythmic.networks import AUDIO_ENCODERS
 from robogest.generators.learned.rhythmic.take import take_blocks
 from robogest.learn import config_with_overrides
+from robogest.learn.spec import ModelSpec
 
 if TYPE_CHECKING:
     from torch import Tensor
@@ -29,7 +30,7 @@ if TYPE_CHECKING:
     from robogest.learn.dist import Sync
 
 
-class RhythmicSpec:
+class RhythmicSpec(ModelSpec[RhythmicConfig]):
     """The trainer's view of the model (:class:`robogest.learn.trainer.ModelSpec`)."""
 
     name = "rhythmic"

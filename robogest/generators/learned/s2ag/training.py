@@ -1,4 +1,4 @@
-"""The trainer's view of S2AG (:class:`robogest.learn.trainer.ModelSpec` + its GAN methods): losses (eq. 15-17),
+"""The trainer's view of S2AG (:class:`robogest.learn.spec.ModelSpec` + its GAN methods): losses (eq. 15-17),
 windows, optimisers."""
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from robogest.generators.learned.s2ag.config import S2AGConfig, mfcc_from_mel
 from robogest.generators.learned.s2ag.networks import F, S2AGGeneratorNet, S2AGNet, nn, torch
 from robogest.generators.learned.s2ag.skeleton import N_EDGES, expmaps_to_directions
 from robogest.learn import config_with_overrides
+from robogest.learn.spec import ModelSpec
 
 if TYPE_CHECKING:
     from robogest.learn.trainer import TrainConfig
@@ -58,8 +59,8 @@ def diversity_regulariser(
     return torch.clamp(-pose_l1 / (z_l1 + 1e-5), min=-1000.0).mean()
 
 
-class S2AGSpec:
-    """The trainer's view of the model (:class:`robogest.learn.trainer.ModelSpec` + its optional GAN methods)."""
+class S2AGSpec(ModelSpec[S2AGConfig]):
+    """The trainer's view of the model (:class:`robogest.learn.spec.ModelSpec` + its optional GAN methods)."""
 
     name = "s2ag"
 
@@ -92,6 +93,7 @@ class S2AGSpec:
         length: int,
         stride: int,
         store: str | os.PathLike | None = None,
+        cache_dir: str | os.PathLike | None = None,
     ) -> tuple[LazyWindows, LazyWindows, np.ndarray]:
         """Windows of ``[normalised MFCC | text | speaker index]`` ``(N, L, 37 + D + 1)`` and mean-subtracted
         directions ``(N, L, 27)`` (``store``: :func:`slice_windows`); the trainer's exp-map normalisation ``norm``
