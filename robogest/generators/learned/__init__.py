@@ -1,7 +1,7 @@
 """Learned generators, one package each (``gesticulator/``, ``rhythmic/``, ``s2ag/``): config, networks, training
 spec and inference; ``checkpoint.py`` is the generator every one of them builds on.
 
-Adding a learned model means adding one folder with a ``SPEC`` (:class:`robogest.learn.trainer.ModelSpec`) and a
+Adding a learned model means adding one folder with a ``SPEC`` (:class:`robogest.learn.spec.ModelSpec`) and a
 :class:`~robogest.generators.learned.checkpoint.CheckpointGenerator` subclass, and naming it in :data:`MODEL_SPECS`
 and the generator registry (:mod:`robogest.generators`). Importing this package does not import torch; the model
 packages do.
@@ -16,7 +16,8 @@ from typing import TYPE_CHECKING
 from robogest.errors import InputError
 
 if TYPE_CHECKING:
-    from robogest.learn.trainer import ModelSpec, TrainConfig
+    from robogest.learn.spec import ModelSpec
+    from robogest.learn.trainer import TrainConfig
 
 
 def _gesticulator() -> ModelSpec:

@@ -1,4 +1,4 @@
-"""The trainer's view of Gesticulator (:class:`robogest.learn.trainer.ModelSpec`): config, network, loss."""
+"""The trainer's view of Gesticulator (:class:`robogest.learn.spec.ModelSpec`): config, network, loss."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from robogest.learn.spec import ModelSpec
 
 
 class GesticulatorSpec(ModelSpec[GesticulatorConfig]):
-    """The trainer's view of the model (:class:`robogest.learn.trainer.ModelSpec`)."""
+    """The trainer's view of the model (:class:`robogest.learn.spec.ModelSpec`)."""
 
     name = "gesticulator"
 

@@ -1,4 +1,4 @@
-"""The trainer's view of the Rhythmic Gesticulator (:class:`robogest.learn.trainer.ModelSpec`): staged epochs and
+"""The trainer's view of the Rhythmic Gesticulator (:class:`robogest.learn.spec.ModelSpec`): staged epochs and
 beat-block windows."""
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 
 
 class RhythmicSpec(ModelSpec[RhythmicConfig]):
-    """The trainer's view of the model (:class:`robogest.learn.trainer.ModelSpec`)."""
+    """The trainer's view of the model (:class:`robogest.learn.spec.ModelSpec`)."""
 
     name = "rhythmic"
 
