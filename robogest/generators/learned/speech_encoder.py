@@ -135,3 +135,22 @@ def load_speech_encoder(path: str | os.PathLike, device: str = "cpu") -> Pretrai
     if key not in _LOADED:
         _LOADED[key] = PretrainedSpeechEncoder(path, device)
     return _LOADED[key]
+
+
+def speech_frames(
+    path: str | os.PathLike, audio: np.ndarray | None, sr: int, n_frames: int, fps: float
+) -> npt.NDArray[np.float32]:
+    """Features ``(n_frames, dim)`` of the encoder at ``path`` for a recording (:meth:`PretrainedSpeechEncoder.frames`).
+
+    Raises
+    ------
+    InputError
+        ``audio`` is None: the encoder reads the waveform, and frame features alone (a take without its recording)
+        cannot feed it.
+    """
+    if audio is None:
+        raise InputError(
+            f"speech encoder {path}: reads the recording, and this take or speech has none (only frame features); "
+            "give takes with their audio, or train without speech_encoder"
+        )
+    return load_speech_encoder(path).frames(audio, sr, n_frames, fps)
