@@ -120,3 +120,14 @@ def test_trained_pca_is_fitted_on_the_training_split_stored_and_applied(fixture_
     assert gen.predict(x).shape == (x.shape[0], p)
     motion = gen.generate(speech)
     assert motion.n_frames == speech.n_frames and np.isfinite(motion.rotations).all()
+
+
+def test_a_model_wrapped_without_normalisation_says_so():
+    from robogest.data import FeatureConfig
+    from robogest.errors import InputError
+    from robogest.generators.learned.gesticulator import GesticulatorGenerator
+
+    net = GesticulatorNet(GesticulatorConfig(n_acoustic=4, n_text=3, n_pose=6)).eval()
+    gen = GesticulatorGenerator.from_model(net, FeatureConfig(text_encoder="hash-test"))
+    with pytest.raises(InputError, match=r"needs its model's normalisation: pass norm="):
+        gen.predict(np.zeros((5, 7), np.float32))
