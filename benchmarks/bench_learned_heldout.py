@@ -276,18 +276,41 @@ def _train_and_generate(model: str, seed: int, args: argparse.Namespace, out: Pa
 
 def _parse_args() -> argparse.Namespace:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--take", required=True, help="path without suffix: TAKE.wav, TAKE.npz|.bvh, TAKE.TextGrid")
+    ap.add_argument("--take", help="path without suffix: TAKE.wav, TAKE.npz|.bvh, TAKE.TextGrid")
     ap.add_argument("--models", nargs="+", default=["gesticulator", "s2ag", "rhythmic"], choices=list(MODEL_SET))
     ap.add_argument("--epochs", type=int, default=8)
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--out", default=None, help="run folder (default: a temporary one)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--text-encoder", default="minilm")
-    return ap.parse_args()
+    ap.add_argument(
+        "--report", nargs="+", metavar="JSON", help="print the tables of saved heldout.json files (e.g. one per seed, "
+        "run in parallel with separate --out folders) together, instead of running"
+    )  # fmt: skip
+    args = ap.parse_args()
+    if not args.report and not args.take:
+        ap.error("--take is required (or --report JSON ...)")
+    return args
+
+
+def _print_report(saved: list[dict[str, Any]]) -> None:
+    """The tables of one or more saved results (same take, split and models), seeds pooled."""
+    header, models = saved[0]["header"], saved[0]["models"]
+    if any(d["header"] != header or d["models"] != models for d in saved):
+        raise SystemExit("--report: the files come from different takes, splits, epochs or models")
+    seeds = [x for d in saved for x in d["seeds"]]
+    runs = [r for d in saved for r in d["runs"]]
+    print(f"\n{header}; seeds {' '.join(map(str, seeds))}: mean (worst seed)")
+    print("\n".join(table(runs, models)))
+    print()
+    print("\n".join(criteria_table(runs, models)))
 
 
 def main() -> None:
     args = _parse_args()
+    if args.report:
+        _print_report([json.loads(Path(f).read_text()) for f in args.report])
+        return
     import numpy as np
     import torch
 
@@ -318,6 +341,10 @@ def main() -> None:
     spans = [(float(a), float(b)) for a, b in speech.silent_spans]
     n = min(gt.n_frames, speech.n_frames)
 
+    header = (
+        f"{take.name}: train 0-{val_s:.1f} s, validation (selection) {val_s:.1f}-{test_s:.1f} s, "
+        f"test (reported) {test_s:.1f}-{test_s + n / gt.fps:.1f} s; {args.epochs} epochs"
+    )
     runs: list[dict[str, Row]] = []
     for seed in args.seeds:
         rows = {"real": _evaluate(gt, gt, onsets, spans), "real train": _distribution(train_motion, gt)}
@@ -331,16 +358,9 @@ def main() -> None:
             motion, val_loss = _train_and_generate(model, seed, args, out, val_fraction, speech)
             rows[model] = {**_evaluate(motion, gt, onsets, spans), "val_loss": val_loss}
         runs.append(rows)
-        (out / "heldout.json").write_text(json.dumps({"seeds": args.seeds[: len(runs)], "runs": runs}, indent=1))
-
-    print(
-        f"\n{take.name}: train 0-{val_s:.1f} s, validation (selection) {val_s:.1f}-{test_s:.1f} s, "
-        f"test (reported) {test_s:.1f}-{test_s + n / gt.fps:.1f} s; {args.epochs} epochs; "
-        f"seeds {' '.join(map(str, args.seeds))}: mean (worst seed)"
-    )
-    print("\n".join(table(runs, args.models)))
-    print()
-    print("\n".join(criteria_table(runs, args.models)))
+        saved = {"header": header, "models": args.models, "seeds": args.seeds[: len(runs)], "runs": runs}
+        (out / "heldout.json").write_text(json.dumps(saved, indent=1))
+    _print_report([saved])
     print(f"results: {out / 'heldout.json'}")
 
 
