@@ -4,6 +4,7 @@ Usage::
 
     .venv/bin/python benchmarks/bench_learned_heldout.py --take ../shared/data/beat2/2_scott_0_1_1 \
         [--models gesticulator s2ag rhythmic] [--epochs 8] [--seeds 0 1 2] [--out runs/heldout] [--threads 2]
+    .venv/bin/python benchmarks/bench_learned_heldout.py --report runs/h0/heldout.json runs/h1/heldout.json ...
 
 The take is split in time into train / validation / test (:data:`SPLIT`: the first 60 %, the next 15 %, the last
 25 %; :func:`split_frames`). The trainer only ever sees the first 75 %: the benchmark writes a copy of the take cut
@@ -12,8 +13,9 @@ one-take split (:func:`robogest.data.prep.split_takes`) holds out the validation
 chosen. Each model then generates the test 25 % free-running from its audio and transcript alone; nothing the test
 part holds (motion, words, stressed vowels) influences training or selection. Two baselines get the same
 evaluation: the mean training pose held still, and a replay of a random stretch of the training motion of the
-same length (a new stretch per seed). Every seed trains every model afresh; the tables give the mean over seeds
-and, in brackets, the worst seed.
+same length (a new stretch per seed). Every seed trains every model afresh (seeded, so seeds run as separate
+processes with their own ``--out`` give the same numbers; ``--report`` pools their ``heldout.json``); the tables
+give the mean over seeds and, in brackets, the worst seed.
 
 Printed per model and baseline (all on the test part unless said otherwise):
 
