@@ -66,7 +66,8 @@ def _positions(n: int, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def resample_clip(x: np.ndarray, k: int) -> np.ndarray:
     """Time-scale ``x`` ``(n, D)`` to ``(k, D)`` (endpoint-aligned linear interpolation)."""
     i0, i1, w = _positions(x.shape[0], k)
-    return ((1.0 - w)[:, None] * x[i0] + w[:, None] * x[i1]).astype(x.dtype, copy=False)
+    out: np.ndarray = ((1.0 - w)[:, None] * x[i0] + w[:, None] * x[i1]).astype(x.dtype, copy=False)
+    return out
 
 
 def normalize_clips(x: np.ndarray, bounds: np.ndarray, k: int) -> np.ndarray:
@@ -90,7 +91,8 @@ def denormalize_blocks(blocks: np.ndarray, lengths: np.ndarray) -> np.ndarray:
 def block_fraction(mask: np.ndarray, bounds: np.ndarray) -> np.ndarray:
     """Share of each clip's frames where the boolean frame ``mask`` ``(T,)`` is set; ``(C,)``."""
     c = np.concatenate([[0], np.cumsum(np.asarray(mask, dtype=np.float64))])
-    return (c[bounds[1:]] - c[bounds[:-1]]) / np.maximum(bounds[1:] - bounds[:-1], 1)
+    share: np.ndarray = (c[bounds[1:]] - c[bounds[:-1]]) / np.maximum(bounds[1:] - bounds[:-1], 1)
+    return share
 
 
 def mel_volume(mel: np.ndarray) -> tuple[np.ndarray, float]:
@@ -120,7 +122,8 @@ def quiet_frames(
         return np.zeros(0, bool)
     power = 10.0 * np.log10(np.mean(10.0 ** (np.asarray(mel_db, np.float64) / 10.0), axis=1) + 1e-20)  # (T,) dB
     noise = max(float(np.percentile(power, noise_percentile)), floor_db)
-    return power <= noise + margin_db
+    quiet: np.ndarray = power <= noise + margin_db
+    return quiet
 
 
 def silent_blocks(bounds: np.ndarray, words: np.ndarray, quiet: np.ndarray, quiet_share: float = 0.5) -> np.ndarray:
@@ -137,10 +140,11 @@ def silent_blocks(bounds: np.ndarray, words: np.ndarray, quiet: np.ndarray, quie
     quiet : ndarray [shape=(T,)], bool
         :func:`quiet_frames`.
     """
-    no_word = block_fraction(words, bounds) == 0.0
+    no_word: np.ndarray = block_fraction(words, bounds) == 0.0
     if np.any(words):
         return no_word
-    return no_word & (block_fraction(quiet, bounds) > quiet_share)
+    silent: np.ndarray = no_word & (block_fraction(quiet, bounds) > quiet_share)
+    return silent
 
 
 def frame_beats(

@@ -12,9 +12,12 @@ import hashlib
 import json
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from robogest.data.datasets import Take
+from robogest.errors import InputError
 from robogest.fileio import atomic_path
 from robogest.generators.learned.rhythmic.blocks import clip_bounds, tsm_mel_blocks
 from robogest.generators.learned.rhythmic.config import RhythmicConfig
@@ -25,7 +28,7 @@ CACHE_VERSION = 1
 FOLDER = "rhythmic-blocks"
 
 
-def block_cache_key(take, c: RhythmicConfig) -> str:
+def block_cache_key(take: Take, c: RhythmicConfig) -> str:
     """Hex digest of everything the beats and the time-scaled blocks depend on: the recording's bytes, where the
     take starts in it and how long it is, the config's rate, beat and mel fields, and :data:`CACHE_VERSION`."""
     fields = {
@@ -34,6 +37,8 @@ def block_cache_key(take, c: RhythmicConfig) -> str:
         "min_beat_gap_s": c.min_beat_gap_s, "max_beat_gap_s": c.max_beat_gap_s, "n_mels": c.n_mels,
         "mel_window_s": c.mel_window_s, "audio_tsm": bool(c.audio_tsm),
     }  # fmt: skip
+    if take.audio_path is None:
+        raise InputError(f"take {take.name}: no recording, so no beats or time-scaled blocks to cache")
     h = hashlib.blake2b(json.dumps(fields, sort_keys=True).encode(), digest_size=20)
     with open(take.audio_path, "rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):
@@ -41,7 +46,9 @@ def block_cache_key(take, c: RhythmicConfig) -> str:
     return h.hexdigest()
 
 
-def take_rhythm_blocks(take, c: RhythmicConfig, cache_dir: str | os.PathLike | None):
+def take_rhythm_blocks(
+    take: Take, c: RhythmicConfig, cache_dir: str | os.PathLike | None
+) -> tuple[np.ndarray, np.ndarray | None]:
     """Beats ``(B,)`` s of a take's recording and, with ``c.audio_tsm``, its time-scaled log-mel blocks
     ``(C, K, n_mels)`` dB before standardisation (else None), read from ``cache_dir`` or computed and stored there
     (``cache_dir=None``: computed, not stored). The take must have a recording (``audio_path``)."""
@@ -61,7 +68,7 @@ def take_rhythm_blocks(take, c: RhythmicConfig, cache_dir: str | os.PathLike | N
         tsm = tsm_mel_blocks(audio, c.audio_sr, bounds, c.fps, c.block, c.n_mels, c.mel_window_s)
     if entry is not None:
         entry.parent.mkdir(parents=True, exist_ok=True)
-        arrays = {"beats_s": np.asarray(beats)} | ({"tsm_db": tsm} if tsm is not None else {})
+        arrays: dict[str, Any] = {"beats_s": np.asarray(beats)} | ({"tsm_db": tsm} if tsm is not None else {})
         with atomic_path(entry) as tmp, open(tmp, "wb") as f:  # complete or absent, whatever the other ranks do
             np.savez(f, **arrays)
     return beats, tsm

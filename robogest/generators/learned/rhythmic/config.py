@@ -83,8 +83,12 @@ class RhythmicConfig:
         Speaker keys (:func:`robogest.data.speaker_key` of the take names) in embedding order; filled from the
         training takes.
     speaker_dim : int
-        Size of the learned speaker embedding the generator is conditioned on (the authors' speaker identity
-        input); 0: none (checkpoints from before it existed).
+        Size of the learned speaker embedding the lexeme interpreters are conditioned on (eq. 16's one-hot speaker
+        ID ``I`` through a linear layer, which an embedding is); 0: none. The generator (eq. 5) takes no speaker.
+    style_takes, style_rows : tuple of str, tuple of int
+        The learnable style codes ``{z_i}`` (§5.2-5.3), one row of :attr:`RhythmicNet.style_codes` per training
+        block: take ``style_takes[t]``'s block ``c`` is row ``style_rows[t] + c`` (``style_rows[-1]`` rows in all,
+        :func:`style_row_count` per take). Filled from the training takes by :meth:`RhythmicSpec.fit_config`.
     """
 
     n_acoustic: int = 69
@@ -133,6 +137,8 @@ class RhythmicConfig:
     smooth_kernel: int = 5
     speakers: tuple = ("default",)
     speaker_dim: int = 8
+    style_takes: tuple = ()
+    style_rows: tuple = ()
 
     def __post_init__(self) -> None:
         if self.stages not in ("sequential", "joint"):
@@ -158,12 +164,33 @@ class RhythmicConfig:
                 return name
         return STAGES[-1]
 
+    @property
+    def n_style_rows(self) -> int:
+        """Rows of the style-code table (1 before :meth:`RhythmicSpec.fit_config` has filled the plan)."""
+        return max(1, int(self.style_rows[-1])) if self.style_rows else 1
+
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> RhythmicConfig:
+        """The config of a checkpoint's ``model_config``.
+
+        Raises
+        ------
+        ValueError
+            A checkpoint from before the per-block style codes (it cannot load: retrain).
+        """
         d = dict(d)
-        if "speakers" not in d:  # a checkpoint from before the speaker embedding
-            d["speaker_dim"] = 0
-        for k in ("stage_weights", "stage_ends", "speakers"):
+        if "style_rows" not in d:  # ValueError: the checkpoint loader names the file around it
+            raise ValueError(
+                "a Rhythmic Gesticulator checkpoint from before its per-block style codes and speaker-conditioned "
+                "lexeme interpreter (eq. 16) cannot be loaded: retrain it with robogest train --model rhythmic"
+            )
+        for k in ("stage_weights", "stage_ends", "speakers", "style_takes", "style_rows"):
             if k in d:
                 d[k] = tuple(d[k])
         return cls(**d)
+
+
+def style_row_count(n_frames: int, c: RhythmicConfig) -> int:
+    """Style-code rows reserved for a take of ``n_frames``: more than its beat blocks can number, since beats are
+    at least ``D_m`` (``min_beat_gap_s``) apart, so clips are at least that long less a frame of rounding."""
+    return n_frames // max(2, round(c.min_beat_gap_s * c.fps) - 1) + 2

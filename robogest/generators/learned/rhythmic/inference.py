@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -11,6 +12,7 @@ from robogest.errors import InputError
 from robogest.generators.learned.checkpoint import CheckpointGenerator
 from robogest.generators.learned.rhythmic.blocks import denormalize_blocks, gaussian_smooth
 from robogest.generators.learned.rhythmic.config import TEXT_SCALE, RhythmicConfig
+from robogest.generators.learned.rhythmic.freerun import BlockInputs, free_run
 from robogest.generators.learned.rhythmic.model import RhythmicNet, torch
 from robogest.generators.learned.rhythmic.take import take_blocks
 from robogest.motion.human_motion import HumanMotion
@@ -48,9 +50,13 @@ class RhythmicGenerator(CheckpointGenerator):
     config_cls = RhythmicConfig
     net_cls = RhythmicNet
 
-    def configure(self, lexeme_temperature: float | None = None, speaker: int | str | None = None) -> None:
+    def configure(
+        self, lexeme_temperature: float | None = None, speaker: int | str | None = None, **options: Any
+    ) -> None:
         """``lexeme_temperature``: 0 the most likely lexeme, > 0 sample at that temperature; None: the config's.
-        ``speaker``: index or key (e.g. BEAT2's ``"2"``) of a training speaker; None: the first."""
+        ``speaker``: index or key (e.g. BEAT2's ``"2"``) of a training speaker; None: the first. Any other option
+        is refused (:meth:`CheckpointGenerator.configure`)."""
+        super().configure(**options)
         if lexeme_temperature is not None and not lexeme_temperature >= 0:
             raise InputError(f"lexeme_temperature={lexeme_temperature!r}: must be >= 0 (0: the most likely lexeme)")
         self.temperature = lexeme_temperature
@@ -71,10 +77,10 @@ class RhythmicGenerator(CheckpointGenerator):
         styles: np.ndarray | None = None,
         force_silent: bool = True,
         temperature: float = 0.0,
-        generator=None,
+        generator: torch.Generator | None = None,
     ) -> BlockPlan:
         """Blocks at the beats of :func:`take_rhythm`, lexemes/styles from the interpreters (or given), motion
-        denormalised.
+        denormalised: :func:`.freerun.free_run` on the whole speech (the loop validation scores too).
 
         Parameters
         ----------
@@ -93,65 +99,42 @@ class RhythmicGenerator(CheckpointGenerator):
         generator : torch.Generator, optional
             Random source of the samples (``temperature > 0``).
         """
-        c, m = self.config, self.model
-        k, t_frames = c.block, speech.n_frames
+        c, m, norm = self.config, self.model, self.norm
+        if norm is None:
+            raise InputError("the rhythmic generator has no normalisation statistics (pass norm= to from_model)")
+        t_frames = speech.n_frames
         acoustic, text = speech_inputs(speech, self.features, self.encoder)  # (T, 69), (T, D)
-        with_text = len(speech.words) > 0
         audio = None
         if c.audio_tsm:
             from robogest.speech.audio import resample
 
             audio = resample(speech.audio, speech.sr, c.audio_sr)
-        tb = take_blocks(acoustic[:, : c.n_mels], text, self.norm, c, audio, beats_s=speech.beats_s)
+        tb = take_blocks(acoustic[:, : c.n_mels], text, norm, c, audio, beats_s=speech.beats_s)
         bounds, silent = tb.bounds, tb.silent  # (C + 1,), (C,)
         n_b = len(bounds) - 1
         if n_b == 0 or t_frames == 0:
             return BlockPlan(bounds, np.zeros(0, int), np.zeros(0, bool), np.zeros((0, c.n_pose), np.float32))
-        blk = np.concatenate([tb.mel, tb.text / TEXT_SCALE], axis=2)  # (C, K, M + D)
+        blk = torch.from_numpy(np.concatenate([tb.mel, tb.text / TEXT_SCALE], axis=2).astype(np.float32))
         dev = self.device
         with torch.inference_mode():
-            b = torch.from_numpy(blk.astype(np.float32)).to(dev)
+            b = blk.to(dev)  # (C, K, M + D)
             mel, txt = b[..., : c.n_mels], b[..., c.n_mels :]
             a_low, a_high, _ = m.audio_features(mel)  # (C, K, d_a), (C, K, d_A)
-            ip = np.maximum(np.arange(n_b) - 1, 0)
-            inx = np.minimum(np.arange(n_b) + 1, n_b - 1)
-            a3 = torch.cat([a_low[ip], a_low, a_low[inx]], dim=2)  # (C, K, 3 d_a)
-            h3 = torch.cat([a_high[ip], a_high, a_high[inx]], dim=2)  # (C, K, 3 d_A)
-            lex_net = m.lex_interp if with_text else m.lex_interp_audio
-            sty_net = m.style_interp if with_text else m.style_interp_audio
-            codebook = m.vq.codebook
-            prev = torch.zeros(1, k, c.n_pose, device=dev)  # the mean pose (normalised zeros)
-            s_prev = codebook[m.vq.quantize(m.vq.encode(prev))]  # (1, d_s)
-            z_prev = torch.zeros(1, c.style_dim, device=dev)
-            out, lex_ids, state = [], np.zeros(n_b, int), None
-            spk = torch.full((1,), self.speaker_index, dtype=torch.long, device=dev)
-            for j in range(n_b):
-                if lexemes is not None:
-                    lex = int(lexemes[j])
-                else:
-                    logits = lex_net(h3[j : j + 1], txt[j : j + 1], s_prev)  # (1, N_s)
-                    if temperature > 0:
-                        p = torch.softmax(logits / temperature, dim=1)
-                        lex = int(torch.multinomial(p.cpu(), 1, generator=generator))
-                    else:
-                        lex = int(logits.argmax(dim=1))
-                    if silent[j] and force_silent:
-                        forced = int(m.nearest_silent(s_prev)[0])
-                        lex = forced if forced >= 0 else lex
-                s = codebook[lex][None]  # (1, d_s)
-                if styles is not None:
-                    z = torch.as_tensor(styles[j : j + 1], dtype=torch.float32, device=dev)
-                elif silent[j] and lexemes is None and force_silent:
-                    z = torch.zeros(1, c.style_dim, device=dev)  # silent blocks: z = 0 (§6.4.1)
-                else:
-                    z = sty_net(a3[j : j + 1], txt[j : j + 1], torch.cat([z_prev, s], dim=1))
-                y, state = m.gen(prev, a3[j : j + 1], s, z, state, spk)  # (1, K, P), LSTM state carried over
-                out.append(y[0])
-                lex_ids[j] = lex
-                prev, s_prev, z_prev = y, s, z
-            blocks = torch.stack(out).cpu().numpy()  # (C, K, P)
+            ip, inx = np.maximum(np.arange(n_b) - 1, 0), np.minimum(np.arange(n_b) + 1, n_b - 1)
+            inp = BlockInputs(
+                a3=torch.cat([a_low[ip], a_low, a_low[inx]], dim=2)[None],  # (1, C, K, 3 d_a)
+                h3=torch.cat([a_high[ip], a_high, a_high[inx]], dim=2)[None],  # (1, C, K, 3 d_A)
+                text=txt[None],
+                silent=torch.from_numpy(silent).to(dev)[None],
+                with_text=torch.tensor([len(speech.words) > 0], device=dev),
+                speaker=torch.full((1,), self.speaker_index, dtype=torch.long, device=dev),
+            )
+            forced_lex = None if lexemes is None else torch.as_tensor(np.asarray(lexemes), device=dev)[None].long()
+            forced_z = None if styles is None else torch.as_tensor(styles, dtype=torch.float32, device=dev)[None]
+            out, ids = free_run(m, inp, forced_lex, forced_z, force_silent, temperature, generator)
+            blocks, lex_ids = out[0].cpu().numpy(), ids[0].cpu().numpy().astype(int)  # (C, K, P), (C,)
         poses = denormalize_blocks(blocks, np.diff(bounds))  # (T, P), normalised
-        poses = self.norm.pose_inverse(gaussian_smooth(poses, c.smooth_kernel))
+        poses = norm.pose_inverse(gaussian_smooth(poses, c.smooth_kernel))
         return BlockPlan(bounds, lex_ids, silent, poses)
 
     def generate(self, speech: Speech, seed: int = 0) -> HumanMotion:

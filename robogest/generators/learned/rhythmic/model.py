@@ -16,9 +16,12 @@ Parts, one :class:`RhythmicNet`:
 * gesture lexicon (§5.1): VQ-VAE over motion blocks (4 conv layers + FC, mirrored decoder, eq. 3, w_α = w_β = 1).
 * generator (§5.2-5.3): previous block's motion features (3-layer conv ``E_M``), three consecutive ``a_low``
   blocks (one FC ``E_A``), lexeme, style code, positional encoding (eq. 8) -> MLP encoder -> H groups of C-way
-  Gumbel-softmax latent -> LSTM decoder. Losses: reconstruction, perceptual (0.5), lexeme (0.2), style KL (1.0).
-* interpreters (§6.1-6.3): lexeme classifier from ``a_high``, text and the previous lexeme; style regressor from
-  ``a_low``; each with an audio-only twin.
+  Gumbel-softmax latent -> LSTM decoder (no speaker input: eq. 5). Style codes: one learnable vector per training
+  block (:attr:`RhythmicNet.style_codes`), trained with the generator. Losses: reconstruction, perceptual (0.5),
+  lexeme (0.2), style KL (1.0).
+* interpreters (§6.1-6.3): lexeme classifier from ``a_high``, text, the previous lexeme and the speaker (eq. 16);
+  style regressor from ``a_low``, text, the previous style code and the lexeme (eq. 19), trained on the learned
+  codes; each with an audio-only twin. At run time they choose every block's lexeme and style code.
 * silent-period hint (§6.4.1): lexemes mostly seen on silent blocks are the silent lexemes; silent blocks get
   the silent lexeme nearest the current (training) or previous (inference) one; ~5 % silent blocks are added to
   the generator's training batch. A silent block has no words and, in takes without any words, mostly quiet frames
@@ -40,23 +43,30 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from robogest.learn import require_torch
 
-torch = require_torch("the 'rhythmic' generator")
-nn = torch.nn
-F = torch.nn.functional
+if TYPE_CHECKING:  # the checker sees torch's own types; at run time a missing torch is one clear error
+    import torch
+    from torch import Tensor, nn
+    from torch.nn import functional as F
 
-from robogest.errors import InputError  # noqa: E402
-from robogest.generators.learned.rhythmic.config import (  # noqa: E402
+    from robogest.learn.dist import Sync
+else:
+    torch = require_torch("the 'rhythmic' generator")
+    nn = torch.nn
+    F = torch.nn.functional
+
+from robogest.errors import InputError
+from robogest.generators.learned.rhythmic.config import (
     SILENT_RUN_LATER,
     STAGE_LOSSES,
     STAGES,
     TEXT_SCALE,
     RhythmicConfig,
 )
-from robogest.generators.learned.rhythmic.networks import AUDIO_ENCODERS, BlockGenerator, Interpreter, MotionVQ  # noqa: E402
+from robogest.generators.learned.rhythmic.networks import AUDIO_ENCODERS, BlockGenerator, Interpreter, MotionVQ
 
 
 # --------------------------------------------------------------------------------------------------- whole model
@@ -65,7 +75,9 @@ class Blocks:
     """The blocks of a batch of training windows (tensors) and the training samples among them.
 
     ``mel`` ``(N, K, n_mels)``, ``text`` ``(N, K, D)`` (scaled: silence = -1), ``poses`` ``(N, K, P)``, ``empty``
-    ``(N,)`` bool (silent block: :func:`.blocks.silent_blocks`); ``prev``, ``cur``, ``nxt`` ``(S,)``
+    ``(N,)`` bool (silent block: :func:`.blocks.silent_blocks`); ``speaker`` ``(N,)`` long (``config.speakers``);
+    ``style_row`` ``(N,)`` long (the block's row of :attr:`RhythmicNet.style_codes`, -1: not a training block);
+    ``prev``, ``cur``, ``nxt`` ``(S,)``
     block indices of the samples (every block but a window's first and last, which serve as context), window by
     window: sample ``w * (W - 2) + j`` is block ``j + 1`` of window ``w``.
     """
@@ -78,11 +90,15 @@ class Blocks:
     cur: Any
     nxt: Any
     per_window: int
-    speaker: Any = None
+    speaker: Any
+    style_row: Any
 
 
 class RhythmicNet(nn.Module):
     """All learned parts; ``forward(speech, poses, epoch)`` is the training loss (see the module docstring)."""
+
+    lex_empty: Tensor  # buffer (N_s,)
+    lex_total: Tensor  # buffer (N_s,)
 
     def __init__(self, config: RhythmicConfig) -> None:
         super().__init__()
@@ -100,8 +116,10 @@ class RhythmicNet(nn.Module):
         self.vq = MotionVQ(c)
         self.gen = BlockGenerator(c, self.low_dim)
         n_s, d_s, d_z = c.lexicon_size, c.lexeme_dim, c.style_dim
-        self.lex_interp = Interpreter(c, self.high_dim, d_s, n_s, with_text=True)
-        self.lex_interp_audio = Interpreter(c, self.high_dim, d_s, n_s, with_text=False)
+        # {z_i} of §5.3: one free style code per training block, learned with the generator (N(0, 1) start: eq. 14)
+        self.style_codes = nn.Embedding(c.n_style_rows, d_z)
+        self.lex_interp = Interpreter(c, self.high_dim, d_s, n_s, with_text=True, with_speaker=True)  # eq. 16
+        self.lex_interp_audio = Interpreter(c, self.high_dim, d_s, n_s, with_text=False, with_speaker=True)
         self.style_interp = Interpreter(c, self.low_dim, d_z + d_s, d_z, with_text=True)
         self.style_interp_audio = Interpreter(c, self.low_dim, d_z + d_s, d_z, with_text=False)
         self.register_buffer("lex_empty", torch.zeros(n_s))  # EMA count of empty-word blocks per lexeme
@@ -109,12 +127,12 @@ class RhythmicNet(nn.Module):
         self.last_parts: dict[str, float] = {}
 
     # ---- features
-    def audio_features(self, mel):
+    def audio_features(self, mel: Tensor) -> tuple[Tensor, Tensor, list[Tensor]]:
         """``mel`` ``(N, K, n_mels)`` -> ``(a_low, a_high, layers)``: ``(N, K, d_a)``, ``(N, K, d_A)``, list."""
         layers = self.audio(mel)
         return layers[self.low_index], layers[-1], layers
 
-    def contrastive_loss(self, text, layers, mask):
+    def contrastive_loss(self, text: Tensor, layers: list[Tensor], mask: Tensor) -> Tensor:
         """Eq. 1: text anchors, ``a^L`` of the same frame positive, every layer of every frame of the block in the
         denominator. ``text`` ``(N, K, D)``, ``mask`` ``(N, K)`` frames inside words (where text exists)."""
         if not any(p.requires_grad for p in self.audio.parameters()):
@@ -134,7 +152,7 @@ class RhythmicNet(nn.Module):
         return (ce * m).sum() / m.sum().clamp_min(1.0)
 
     # ---- lexicon helpers
-    def silent_mask(self):
+    def silent_mask(self) -> Tensor:
         """Silent lexemes ``(N_s,)`` bool: mostly used on empty-word blocks (the most such one if none qualifies)."""
         share = self.lex_empty / self.lex_total.clamp_min(1e-6)
         mask = (share >= self.config.silent_share) & (self.lex_total > 1e-3)
@@ -144,7 +162,7 @@ class RhythmicNet(nn.Module):
                 mask[self.lex_empty.argmax()] = True
         return mask
 
-    def nearest_silent(self, s):
+    def nearest_silent(self, s: Tensor) -> Tensor:
         """Index ``(B,)`` of the silent lexeme nearest each lexeme vector ``s`` ``(B, d_s)`` (-1: none known)."""
         mask = self.silent_mask()
         if not bool(mask.any()):
@@ -152,17 +170,23 @@ class RhythmicNet(nn.Module):
         d = torch.cdist(s, self.vq.codebook.detach())  # (B, N_s)
         return d.masked_fill(~mask[None], math.inf).argmin(dim=1)
 
+    def block_styles(self, rows: Tensor) -> Tensor:
+        """Learned style codes ``(N, d_z)`` of blocks with style-code ``rows`` ``(N,)``; 0 where a row is -1 (not a
+        training block: a validation take's, whose codes at run time come from the style interpreter)."""
+        codes: Tensor = self.style_codes(rows.clamp_min(0))  # (N, d_z)
+        return codes * (rows >= 0)[:, None]
+
     # ---- training
-    def segment(self, speech, poses) -> Blocks:
-        """Trainer windows ``(B, W * K, M + D + 2)``, ``(B, W * K, P)`` from :meth:`RhythmicSpec.make_windows`
-        (``W`` consecutive blocks laid end to end; the last two input channels: silent-block flag, speaker index)
-        -> blocks."""
+    def segment(self, speech: Tensor, poses: Tensor) -> Blocks:
+        """Trainer windows ``(B, W * K, M + D + 3)``, ``(B, W * K, P)`` from :meth:`RhythmicSpec.make_windows`
+        (``W`` consecutive blocks laid end to end; the last three input channels: silent-block flag, speaker index,
+        style-code row) -> blocks."""
         c = self.config
         k, m, d = c.block, c.n_mels, c.n_text
         b, length = speech.shape[:2]
-        if speech.shape[2] != m + d + 2 or length % k:
+        if speech.shape[2] != m + d + 3 or length % k:
             raise InputError(
-                f"rhythmic windows are {tuple(speech.shape)}, expected (B, W * {k}, {m + d + 2}); "
+                f"rhythmic windows are {tuple(speech.shape)}, expected (B, W * {k}, {m + d + 3}); "
                 "make them with RhythmicSpec.make_windows"
             )
         w = length // k
@@ -174,8 +198,9 @@ class RhythmicNet(nn.Module):
             mel=x[..., :m],
             text=x[..., m : m + d] / TEXT_SCALE,
             poses=poses.reshape(b * w, k, -1),  # (B, W * K, P) -> (B * W, K, P)
-            empty=x[:, 0, -2] > 0.5,
-            speaker=x[:, 0, -1].round().long(),
+            empty=x[:, 0, -3] > 0.5,
+            speaker=x[:, 0, -2].round().long(),
+            style_row=x[:, 0, -1].round().long(),
             prev=cur - 1,
             cur=cur,
             nxt=cur + 1,
@@ -183,7 +208,7 @@ class RhythmicNet(nn.Module):
         )
 
     @torch.no_grad()
-    def before_step(self, speech, poses, epoch: int = 0, sync=None) -> None:
+    def before_step(self, speech: Tensor, poses: Tensor, epoch: int = 0, sync: Sync | None = None) -> None:
         """The state that is not learned by gradient, updated from a training batch before its step: the lexicon's
         codebook upkeep (:meth:`MotionVQ.maintain`, while the lexicon trains) and the silent-lexeme statistics.
 
@@ -207,12 +232,13 @@ class RhythmicNet(nn.Module):
         self.lex_total.mul_(0.98).add_(counts[:n_s])
         self.lex_empty.mul_(0.98).add_(counts[n_s:])
 
-    def forward(self, speech, poses, epoch: int = 0):
+    def forward(self, speech: Tensor, poses: Tensor, epoch: int = 0) -> Tensor:
         """Loss of trainer windows (see :meth:`segment`) at ``epoch``.
 
         In training mode only the stage of ``epoch`` (:meth:`RhythmicConfig.stage_at`) is computed and learns, the
-        earlier ones frozen; in joint training, and in evaluation mode (the validation loss), it is the sum of all
-        four stages' objectives, each gradient-isolated:
+        earlier ones frozen; in joint training, and in evaluation mode, it is the sum of all four stages' objectives,
+        each gradient-isolated (``best.pt`` is chosen on free-running generation instead:
+        :meth:`RhythmicSpec.validation_loss`):
 
         1. audio encoder: contrastive eq. 1 (its outputs are detached downstream);
         2. lexicon: VQ-VAE eq. 3 (lexemes detached downstream; the perceptual/lexeme losses use its encoder
@@ -257,22 +283,22 @@ class RhythmicNet(nn.Module):
             lex_t = idx[i].clone()  # targets: lexeme index, silent blocks forced to the nearest silent lexeme
             forced = self.nearest_silent(s_all[i])
             lex_t = torch.where(bl.empty[i] & (forced >= 0), forced, lex_t)
-            with torch.no_grad():
-                z_t = self.gen.style_code(bl.poses[i])
-                z_prev = self.gen.style_code(bl.poses[p])
+            with torch.no_grad():  # targets: the learned style codes of the blocks (§6.4)
+                z_t = self.block_styles(bl.style_row[i])
+                z_prev = self.block_styles(bl.style_row[p])
             ctx_z = torch.cat([z_prev, s_all[i]], dim=1)
-            text_i = bl.text[i]
+            text_i, spk = bl.text[i], bl.speaker[i]
             l_int = zero
             for lex_net, sty_net in (
                 (self.lex_interp, self.style_interp),
                 (self.lex_interp_audio, self.style_interp_audio),
             ):
-                l_int = l_int + F.cross_entropy(lex_net(h3, text_i, s_all[p]), lex_t)
+                l_int = l_int + F.cross_entropy(lex_net(h3, text_i, s_all[p], spk), lex_t)
                 l_int = l_int + F.mse_loss(sty_net(a3, text_i, ctx_z), z_t)
             parts["interp"] = l_int
         return self._total(parts, speech)
 
-    def _total(self, parts: dict[str, Any], speech):
+    def _total(self, parts: dict[str, Any], speech: Tensor) -> Tensor:
         """Sum of the stages' objectives in ``parts`` (the other entries are their terms, logged only)."""
         self.last_parts = {k: float(v.detach()) for k, v in parts.items()}
         total = sum((parts[k] for k in STAGE_LOSSES if k in parts), speech.new_zeros(()))
@@ -280,7 +306,7 @@ class RhythmicNet(nn.Module):
             total = total + speech.new_zeros((), requires_grad=True)
         return total
 
-    def generator_losses(self, bl: Blocks, a_low, s_all, idx) -> dict[str, Any]:
+    def generator_losses(self, bl: Blocks, a_low: Tensor, s_all: Tensor, idx: Tensor) -> dict[str, Tensor]:
         """Eq. 9 (``"gen"``, with its parts for the log) on the generator's rollout over each window plus inserted
         silent blocks.
 
@@ -295,11 +321,10 @@ class RhythmicNet(nn.Module):
         p, i, n = bl.prev, bl.cur, bl.nxt
         a3 = torch.cat([a_low[p], a_low[i], a_low[n]], dim=2)  # (S, K, 3 d_a)
         target = bl.poses[i]
-        z = self.gen.style_code(target)  # (S, d_z)
+        z = self.block_styles(bl.style_row[i])  # (S, d_z) the blocks' learnable codes, trained with G (§5.3)
         s = s_all[i]
         n_real = i.numel()
-        spk = bl.speaker[i]  # (S,)
-        gen = self.rollout(bl.poses[p[:: bl.per_window]], a3, s, z, bl.per_window, spk)  # (S, K, P)
+        gen = self.rollout(bl.poses[p[:: bl.per_window]], a3, s, z, bl.per_window)  # (S, K, P)
         prev_m = bl.poses[p]
         after_empty = torch.nonzero(bl.empty[p]).flatten()
         silent_of_prev = self.nearest_silent(s_all[p])
@@ -314,16 +339,13 @@ class RhythmicNet(nn.Module):
             s = torch.cat([s, self.vq.codebook.detach()[silent_of_prev[pick]]])
             z = torch.cat([z, z.new_zeros(pick.numel(), c.style_dim)])
             target = torch.cat([target, still])
-            spk = torch.cat([spk, bl.speaker[pp]])
         if prev_m.shape[0] > n_real:  # the inserted silent blocks, one step each from their held pose
-            extra, _ = self.gen(prev_m[n_real:], a3[n_real:], s[n_real:], z[n_real:], speaker=spk[n_real:])
+            extra, _ = self.gen(prev_m[n_real:], a3[n_real:], s[n_real:], z[n_real:])
             gen = torch.cat([gen, extra])  # (S', K, P)
         l_rec = F.mse_loss(gen, target)
         l_perc = F.mse_loss(self.vq.encode(gen, frozen=True), self.vq.encode(target, frozen=True).detach())
         perm = torch.randperm(n_real, device=a_low.device)  # eq. 12: same lexeme, another block's other inputs
-        other, _ = self.gen(
-            prev_m[:n_real][perm], a3[:n_real][perm], s[:n_real], z[:n_real][perm], speaker=spk[:n_real][perm]
-        )
+        other, _ = self.gen(prev_m[:n_real][perm], a3[:n_real][perm], s[:n_real], z[:n_real][perm])
         l_lex = F.mse_loss(self.vq.encode(other, frozen=True), s[:n_real])
         zr = z[:n_real]
         mu, var = zr.mean(0), zr.var(0, unbiased=False) + 1e-6
@@ -331,16 +353,15 @@ class RhythmicNet(nn.Module):
         l_gen = c.w_rec * l_rec + c.w_perc * l_perc + c.w_lexeme * l_lex + c.w_z * l_z
         return {"gen": l_gen, "rec": l_rec, "perc": l_perc, "lexeme": l_lex, "kl": l_z}
 
-    def rollout(self, first_prev, a3, s, z, per_window: int, speaker=None):
+    def rollout(self, first_prev: Tensor, a3: Tensor, s: Tensor, z: Tensor, per_window: int) -> Tensor:
         """Generate each window's sample blocks one after another from its ground-truth context block.
 
         Parameters
         ----------
         first_prev : Tensor [shape=(B, K, P)]
             Each window's first (context) block.
-        a3, s, z, speaker : Tensor [shape=(S, ...)]
-            Per sample block (``S = B * per_window``, window by window): audio of blocks i-1, i, i+1, lexeme, style,
-            speaker index (optional).
+        a3, s, z : Tensor [shape=(S, ...)]
+            Per sample block (``S = B * per_window``, window by window): audio of blocks i-1, i, i+1, lexeme, style.
 
         Returns
         -------
@@ -350,9 +371,8 @@ class RhythmicNet(nn.Module):
         b = first_prev.shape[0]
         view = lambda x: x.reshape(b, per_window, *x.shape[1:])  # noqa: E731  (S, ...) -> (B, W - 2, ...)
         a3, s, z = view(a3), view(s), view(z)
-        spk = view(speaker) if speaker is not None else None
         prev, state, outs = first_prev, None, []
         for j in range(per_window):
-            prev, state = self.gen(prev, a3[:, j], s[:, j], z[:, j], state, None if spk is None else spk[:, j])
+            prev, state = self.gen(prev, a3[:, j], s[:, j], z[:, j], state)
             outs.append(prev)
         return torch.stack(outs, dim=1).flatten(0, 1)  # (B, W - 2, K, P) -> (S, K, P)

@@ -4,17 +4,26 @@
 from __future__ import annotations
 
 import itertools
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robogest.learn import require_torch
 
-torch = require_torch("the 'rhythmic' generator")
-nn = torch.nn
-F = torch.nn.functional
+if TYPE_CHECKING:  # the checker sees torch's own types; at run time a missing torch is one clear error
+    import torch
+    from torch import Tensor, nn
+    from torch.nn import functional as F
 
-from robogest.generators.learned.rhythmic.config import RhythmicConfig  # noqa: E402
-from robogest.learn.dist import Sync  # noqa: E402
+    #: The decoder LSTM's ``(h, c)``.
+    LSTMState = tuple[Tensor, Tensor]
+else:
+    torch = require_torch("the 'rhythmic' generator")
+    nn = torch.nn
+    F = torch.nn.functional
+
+from robogest.generators.learned.rhythmic.config import RhythmicConfig
+from robogest.learn.dist import Sync
 
 
 # --------------------------------------------------------------------------------------------------- audio encoder
@@ -31,7 +40,7 @@ class ConvAudioEncoder(nn.Module):
         )
         self.layer_dims = chans[1:]
 
-    def forward(self, mel):
+    def forward(self, mel: Tensor) -> list[Tensor]:
         """``mel`` ``(B, K, n_mels)`` -> list of ``(B, K, C_l)``, one per layer (``l = 1..L``)."""
         h = mel.transpose(1, 2)  # (B, n_mels, K)
         out = []
@@ -50,18 +59,21 @@ class MelAudioEncoder(nn.Module):
         super().__init__()
         self.layer_dims = [c.n_mels]
 
-    def forward(self, mel):
+    def forward(self, mel: Tensor) -> list[Tensor]:
         return [mel]
 
 
 #: Audio encoders by name: ``cls(config)`` with ``layer_dims``, ``trainable`` (has a pre-training stage) and
 #: ``forward(mel) -> [per-layer (B, K, C_l)]``.
-AUDIO_ENCODERS: dict[str, type] = {"conv": ConvAudioEncoder, "mel": MelAudioEncoder}
+AUDIO_ENCODERS: dict[str, type[ConvAudioEncoder | MelAudioEncoder]] = {"conv": ConvAudioEncoder, "mel": MelAudioEncoder}
 
 
 # --------------------------------------------------------------------------------------------------- lexicon
 class MotionVQ(nn.Module):
     """VQ-VAE of §5.1: 4 conv layers + FC -> lexeme space (d_s), codebook of ``lexicon_size``, mirrored decoder."""
+
+    usage: Tensor  # buffer (N_s,)
+    initialised: Tensor  # buffer (), bool
 
     def __init__(self, c: RhythmicConfig) -> None:
         super().__init__()
@@ -81,24 +93,27 @@ class MotionVQ(nn.Module):
         self.register_buffer("usage", torch.ones(c.lexicon_size))  # EMA of how often each code is picked
         self.register_buffer("initialised", torch.zeros((), dtype=torch.bool))
 
-    def encode(self, m, frozen: bool = False):
+    def encode(self, m: Tensor, frozen: bool = False) -> Tensor:
         """Motion blocks ``(B, K, P)`` -> ``E(M)`` ``(B, d_s)``; ``frozen``: through detached weights (no update)."""
         x = m.transpose(1, 2)  # (B, P, K)
         if not frozen:
-            return self.enc(x)
+            out: Tensor = self.enc(x)
+            return out
         params = {n: p.detach() for n, p in self.enc.named_parameters()}
-        return torch.func.functional_call(self.enc, params, (x,))
+        frozen_out: Tensor = torch.func.functional_call(self.enc, params, (x,))
+        return frozen_out
 
-    def decode(self, s):
+    def decode(self, s: Tensor) -> Tensor:
         """``(B, d_s)`` -> ``(B, K, P)``."""
         h = self.dec_fc(s).view(s.shape[0], self.ch, self.k)  # (B, ch * K) -> (B, ch, K)
-        return self.dec(h).transpose(1, 2)  # (B, P, K) -> (B, K, P)
+        out: Tensor = self.dec(h)  # (B, P, K)
+        return out.transpose(1, 2)  # (B, P, K) -> (B, K, P)
 
-    def quantize(self, e):
+    def quantize(self, e: Tensor) -> Tensor:
         """Nearest codebook entries (eq. 4): indices ``(B,)``."""
         return torch.cdist(e, self.codebook.detach()).argmin(dim=1)
 
-    def forward(self, m):
+    def forward(self, m: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         """Eq. 3 loss, reconstruction error and indices of motion blocks ``(B, K, P)``.
 
         Changes no state: the codebook's upkeep is :meth:`maintain`, called by the trainer before the step."""
@@ -111,7 +126,7 @@ class MotionVQ(nn.Module):
         return loss, rec_err.detach(), idx
 
     @torch.no_grad()
-    def maintain(self, e, sync: Sync | None = None) -> None:
+    def maintain(self, e: Tensor, sync: Sync | None = None) -> None:
         """Data-dependent start and dead-code restart, so the small lexicon is actually used (not in eq. 3).
 
         ``e`` ``(B, d_s)``: this batch's (this rank's shard's) encodings. Under DDP (``sync``) every rank makes the
@@ -169,15 +184,15 @@ def _conv_stack(c_in: int, c_hid: int, c_out: int, n: int) -> nn.Sequential:
 class BlockGenerator(nn.Module):
     """G of eq. 5: MLP encoder -> H x C Gumbel-softmax latent -> LSTM decoder, one motion block at a time."""
 
+    pe: Tensor  # buffer (K, d_P), eq. 8
+
     def __init__(self, c: RhythmicConfig, low_dim: int) -> None:
         super().__init__()
         self.c = c
         self.e_m = _conv_stack(c.n_pose, c.hidden, c.motion_feat_dim, 3)  # E_M, 3 conv layers (eq. 6)
         self.e_a = nn.Linear(3 * low_dim, c.audio_feat_dim)  # E_A, one FC layer (eq. 7)
-        self.style = nn.Sequential(_conv_stack(c.n_pose, c.hidden, c.style_dim, 2))  # amortised style code z_i
         self.register_buffer("pe", torch.from_numpy(positional_encoding(c.block, c.pe_dim)))
-        n_in = c.motion_feat_dim + c.audio_feat_dim + c.lexeme_dim + c.style_dim + c.pe_dim + c.speaker_dim
-        self.speaker = nn.Embedding(max(1, len(c.speakers)), c.speaker_dim) if c.speaker_dim else None
+        n_in = c.motion_feat_dim + c.audio_feat_dim + c.lexeme_dim + c.style_dim + c.pe_dim  # eq. 5: no speaker
         self.mlp = nn.Sequential(
             nn.Linear(n_in, c.hidden), nn.LeakyReLU(0.2), nn.Linear(c.hidden, c.latent_groups * c.latent_classes)
         )
@@ -185,11 +200,9 @@ class BlockGenerator(nn.Module):
         self.lstm = nn.LSTM(c.latent_groups * c.latent_group_dim + c.motion_feat_dim, c.hidden, batch_first=True)
         self.out = nn.Linear(c.hidden, c.n_pose)
 
-    def style_code(self, m):
-        """Per-block style code ``(B, d_z)`` of motion blocks ``(B, K, P)`` (stands in for one free z per block)."""
-        return self.style(m.transpose(1, 2)).mean(dim=2)  # (B, d_z, K) -> (B, d_z)
-
-    def forward(self, prev, a_low3, s, z, state=None, speaker=None):
+    def forward(
+        self, prev: Tensor, a_low3: Tensor, s: Tensor, z: Tensor, state: LSTMState | None = None
+    ) -> tuple[Tensor, LSTMState]:
         """One block, continuing the LSTM ``state`` of the previous block (None: a fresh start).
 
         Parameters
@@ -204,8 +217,6 @@ class BlockGenerator(nn.Module):
         state : tuple of Tensor, optional
             The decoder LSTM's ``(h, c)`` after the previous block; the authors' generator runs block after block
             with its state carried over.
-        speaker : Tensor [shape=(B,)], long, optional
-            Speaker indices into ``config.speakers`` (default 0).
 
         Returns
         -------
@@ -218,9 +229,6 @@ class BlockGenerator(nn.Module):
         m_feat = self.e_m(prev.transpose(1, 2)).transpose(1, 2)  # (B, P, K) -> (B, d_m, K) -> (B, K, d_m)
         parts = [m_feat, self.e_a(a_low3), s[:, None].expand(b, k, -1), z[:, None].expand(b, k, -1),
                  self.pe[None].expand(b, k, -1)]  # fmt: skip
-        if self.speaker is not None:
-            spk = speaker if speaker is not None else torch.zeros(b, dtype=torch.long, device=prev.device)
-            parts.append(self.speaker(spk)[:, None].expand(b, k, -1))  # (B, K, speaker_dim)
         cond = torch.cat(parts, dim=2)  # (B, K, n_in)
         logits = self.mlp(cond).view(b, k, c.latent_groups, c.latent_classes)  # (B, K, H * C) -> (B, K, H, C)
         if self.training:
@@ -238,24 +246,35 @@ class BlockGenerator(nn.Module):
 class Interpreter(nn.Module):
     """LSTM over a block's condition frames -> last state -> head (lexeme logits or style code, §6.1-6.2).
 
-    ``with_text=False`` is the audio-only variant (§6.3): the text branch is absent.
+    ``with_text=False`` is the audio-only variant (§6.3): the text branch is absent. ``with_speaker``: the speaker
+    ID ``I`` joins the inputs as a feature block (eq. 16, the lexeme interpreters; eq. 19's style interpreter has
+    none), through an embedding of ``config.speaker_dim`` (a linear layer of the one-hot ``I``).
     """
 
-    def __init__(self, c: RhythmicConfig, audio_dim: int, ctx_dim: int, n_out: int, with_text: bool) -> None:
+    def __init__(
+        self, c: RhythmicConfig, audio_dim: int, ctx_dim: int, n_out: int, with_text: bool, with_speaker: bool = False
+    ) -> None:
         super().__init__()
         self.with_text = with_text
         self.e_a = nn.Linear(3 * audio_dim, c.audio_feat_dim)  # E_A^lex / E_A^style: one FC layer
         self.e_t = nn.Linear(c.n_text, c.audio_feat_dim) if with_text else None  # E_T: one FC layer
-        n_in = c.audio_feat_dim * (2 if with_text else 1) + ctx_dim
+        use_speaker = with_speaker and c.speaker_dim > 0
+        self.speaker = nn.Embedding(max(1, len(c.speakers)), c.speaker_dim) if use_speaker else None
+        n_in = c.audio_feat_dim * (2 if with_text else 1) + ctx_dim + (c.speaker_dim if use_speaker else 0)
         self.lstm = nn.LSTM(n_in, c.hidden, batch_first=True)
         self.head = nn.Linear(c.hidden, n_out)
 
-    def forward(self, audio3, text, ctx):
-        """``audio3`` ``(B, K, 3 * d)``, ``text`` ``(B, K, D)`` (ignored audio-only), ``ctx`` ``(B, d_ctx)``."""
+    def forward(self, audio3: Tensor, text: Tensor, ctx: Tensor, speaker: Tensor | None = None) -> Tensor:
+        """``audio3`` ``(B, K, 3 * d)``, ``text`` ``(B, K, D)`` (ignored audio-only), ``ctx`` ``(B, d_ctx)``,
+        ``speaker`` ``(B,)`` long indices into ``config.speakers`` (default 0; unused without a speaker input)."""
         b, k = audio3.shape[:2]
         parts = [self.e_a(audio3)]
         if self.e_t is not None:
             parts.append(self.e_t(text))
         parts.append(ctx[:, None].expand(b, k, -1))
+        if self.speaker is not None:
+            spk = speaker if speaker is not None else torch.zeros(b, dtype=torch.long, device=audio3.device)
+            parts.append(self.speaker(spk)[:, None].expand(b, k, -1))  # (B, K, speaker_dim)
         h, _ = self.lstm(torch.cat(parts, dim=2))  # (B, K, hidden)
-        return self.head(h[:, -1])  # (B, n_out)
+        out: Tensor = self.head(h[:, -1])  # (B, n_out)
+        return out

@@ -54,7 +54,8 @@ def take_rhythm(
 
 def word_frames(text: np.ndarray) -> np.ndarray:
     """Frames ``(T,)`` inside a word: text features other than the silence vector (raw scale, -15)."""
-    return ~np.all(text <= -TEXT_SCALE + 1e-3, axis=1)
+    inside: np.ndarray = ~np.all(text <= -TEXT_SCALE + 1e-3, axis=1)
+    return inside
 
 
 @dataclass
