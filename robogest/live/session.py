@@ -39,6 +39,7 @@ from robogest.backends.base import Backend
 from robogest.errors import InputError
 from robogest.live import claims
 from robogest.live.idle import IdleConfig, IdleMotion
+from robogest.live.prepare import WARM_UP_TEXT, ProcessPreparer, SayPreparer, SayRequest, generator_key
 from robogest.live.style import BodyLanguage, body_language
 from robogest.live.worker import Worker
 from robogest.robot.registry import DEFAULT_ROBOT
@@ -252,6 +253,11 @@ class Robot:
     approach_within_rad : float
         An utterance starting this close (every joint, radians) to the pose held starts at once, the limiter
         taking up the difference; farther away, the robot first glides to its first pose.
+    prepare : str
+        ``"process"``: says are prepared in a child Python process started with the session
+        (:mod:`robogest.live.prepare`), so their seconds of GIL-holding work never delay the control loop or the
+        caller's asyncio loop; ``"thread"``: in the session's worker thread (where child processes are unwanted;
+        the same results bit for bit). Streams are planned in their own thread either way.
     """
 
     def __init__(
@@ -278,6 +284,7 @@ class Robot:
         blas_threads: int | None = 1,
         stop_within_s: float | None = 0.45,
         approach_within_rad: float = 0.2,
+        prepare: str = "process",
     ) -> None:
         from robogest.robot.registry import find_robot
         from robogest.speech.stream import DEFAULT_LOOKAHEAD_S
@@ -305,6 +312,11 @@ class Robot:
         self.blas_threads = blas_threads
         self.stop_within_s = stop_within_s
         self.approach_within_rad = float(approach_within_rad)
+        if prepare not in ("process", "thread"):
+            raise InputError(f'Robot: prepare={prepare!r}; use "process" (says prepared in a child process) or '
+                             '"thread" (in the session\'s worker thread)')  # fmt: skip
+        self.prepare_in = prepare
+        self._preparer: SayPreparer | ProcessPreparer | None = None  #: prepares says (robogest.live.prepare)
         self._blas: Any = None
         self.loop: Any = None
         self.idle: IdleMotion | None = None
@@ -383,6 +395,11 @@ class Robot:
                       "play times", file=sys.stderr)  # fmt: skip
         else:
             self.audio_note = "audio off" if self.time_scale == 1.0 else "time_scale is not 1"
+        if self.prepare_in == "process":  # started by _background_start, once the loop holds the robot
+            self._preparer = ProcessPreparer(self.config, self.blas_threads)
+        else:
+            key = generator_key(self.generator_name, self.generator_options)
+            self._preparer = SayPreparer(self.config, {key: self._generator})
         self.loop = ControlLoop(
             be, self.rate_hz, threaded=True, time_scale=self.time_scale, on_tick=self.on_tick,
             stop_within_s=self.stop_within_s,
@@ -392,6 +409,7 @@ class Robot:
             self.loop.start()
         except BaseException:
             self.loop.close()
+            self._close_preparer()
             self._opened = False  # may be opened again
             if self._blas is not None:
                 self._blas.restore_original_limits()
@@ -408,8 +426,11 @@ class Robot:
     def _background_start(self) -> None:
         """After the loop holds the robot: tabulate the idle motion (IK of its cycles) and start it, then warm up.
 
-        Both run here so the session is ready (holding rest, taking utterances) as early as possible.
+        Both run here so the session is ready (holding rest, taking utterances) as early as possible. The child
+        process that prepares says starts first: it imports meanwhile.
         """
+        if isinstance(self._preparer, ProcessPreparer):
+            self._preparer.start()
         if self._idle_ik is not None:
             idle = IdleMotion(self.config, self.idle_config, retargeter=self._idle_ik)
             with self._say_lock:
@@ -448,24 +469,13 @@ class Robot:
 
     def _warm_up(self) -> None:
         """Load and run the speech and planning code once (their first calls import a lot; the first eSpeak NG
-        call loads its voice), for a say and for a stream, so the first utterance starts as fast
-        as later ones. Runs in the worker while the robot idles; stops early when the session closes."""
+        call loads its voice), for a stream and for a say (where says are prepared: this thread or the child
+        process), so the first utterance starts as fast as later ones. Runs in the worker while the robot idles;
+        stops early when the session closes."""
         from robogest.live.planner import StreamingPlanner
-        from robogest.pipeline import DEFAULT_TRAJECTORY_FPS, load_speech_input, motion_to_trajectory
         from robogest.speech.stream import SpeechStream
 
         stopping = self._worker.stopping if self._worker is not None else threading.Event()
-        with contextlib.suppress(Exception):
-            speech = load_speech_input(text="Hello there, nice to meet you.", voice=self.voice,
-                                       words_per_minute=self.words_per_minute)  # fmt: skip
-            if stopping.is_set():
-                return
-            motion = self._generator.generate(speech, seed=self.seed)
-            if stopping.is_set():
-                return
-            motion_to_trajectory(motion, self.config, silent_spans=speech.silent_spans, fps=DEFAULT_TRAJECTORY_FPS)
-        if stopping.is_set():
-            return
         with contextlib.suppress(Exception):
             sr = 16000
             t = np.arange(int(0.8 * sr)) / sr
@@ -479,6 +489,10 @@ class Robot:
             st.close()
             with self._plan_lock:
                 pl.plan()
+        if stopping.is_set() or self._preparer is None:
+            return
+        with contextlib.suppress(Exception):  # (the child process has imported meanwhile)
+            self._preparer.prepare(self._say_request(WARM_UP_TEXT, None, None, BodyLanguage(None, None), False))
 
     def close(self) -> str | None:
         """Stop any utterance, glide to rest, torque off, disconnect. Idempotent; returns why rest was not
@@ -490,6 +504,7 @@ class Robot:
         try:
             return self.loop.close()
         finally:
+            self._close_preparer()  # a say being prepared there is dropped at once
             try:
                 if self._worker is not None:  # joined: a thread left in numba code can crash the exit
                     self._worker.stop()
@@ -498,6 +513,10 @@ class Robot:
                     self._blas.restore_original_limits()
                     self._blas = None
                 claims.release(self._claim, self)
+
+    def _close_preparer(self) -> None:
+        if isinstance(self._preparer, ProcessPreparer):
+            self._preparer.close()
 
     def _release_native(self) -> None:
         """At interpreter exit, after :meth:`close`: drop the limiter's native (ruckig) objects before the
@@ -576,8 +595,7 @@ class Robot:
         if (text is None) == (audio is None):
             raise InputError("give either text to speak (TEXT, or --text) or --audio FILE (not both, not neither)")
         body = body_language(style, amount, gestures)
-        generator = self._generator if body.empty else None  # per-call: built in the worker
-        if generator is None and self.generator_name != "rhythm":
+        if not body.empty and self.generator_name != "rhythm":
             raise InputError(f'say: style, amount and gestures are options of the "rhythm" generator, not '
                              f"{self.generator_name!r} (this session's)")  # fmt: skip
         h = UtteranceHandle("say")
@@ -591,35 +609,40 @@ class Robot:
             self._preparing.discard(h)
             h._abandon("session closed")
 
-        self._worker.submit(lambda: self._prepare(h, asked, text, audio, transcript, generator or body, lenient), drop)
+        req = self._say_request(text, audio, transcript, body, lenient)
+        self._worker.submit(lambda: self._prepare(h, asked, req), drop)
         if wait:
             h.wait()
         return h
 
-    def _prepare(
-        self, h: UtteranceHandle, asked: int, text: Any, audio: Any, transcript: Any, gen: Any, lenient: bool = False
-    ) -> None:
-        """In the worker: speech, gestures, trajectory, then play (unless interrupted since it was asked for)."""
-        from robogest.pipeline import DEFAULT_TRAJECTORY_FPS, load_speech_input, motion_to_trajectory
+    def _say_request(
+        self, text: str | None, audio: Any, transcript: Any, body: BodyLanguage, lenient: bool
+    ) -> SayRequest:
+        """What the preparer needs for one say: the session's options, ``body``'s overrides (``rhythm`` only)."""
+        from robogest.pipeline import DEFAULT_TRAJECTORY_FPS
 
+        name, options = self.generator_name, self.generator_options
+        if not body.empty:
+            name, options = "rhythm", body.options(self.generator_options)
+        return SayRequest(
+            text=text, audio=None if audio is None else str(audio),
+            transcript=None if transcript is None else str(transcript), voice=self.voice,
+            words_per_minute=self.words_per_minute, lenient=lenient, generator=name, generator_options=dict(options),
+            seed=self.seed, fps=DEFAULT_TRAJECTORY_FPS,
+        )  # fmt: skip
+
+    def _prepare(self, h: UtteranceHandle, asked: int, req: SayRequest) -> None:
+        """In the worker: speech, gestures, trajectory (by the preparer: here or in the child process), then play
+        (unless interrupted since it was asked for)."""
         try:
             if self._interrupts != asked:  # barge-in before its turn: nothing to prepare
                 h._abandon("interrupt")
                 self._idle_resume()
                 return
-            if isinstance(gen, BodyLanguage):
-                gen = self._generator_for(gen)
-            speech = load_speech_input(
-                text=text, audio=audio, transcript=transcript, voice=self.voice, words_per_minute=self.words_per_minute,
-                lenient=lenient, units=getattr(getattr(gen, "repertoire", None), "units", None),
-            )  # fmt: skip
-            motion = gen.generate(speech, seed=self.seed)
-            traj, _, _ = motion_to_trajectory(
-                motion, self.config, silent_spans=speech.silent_spans, fps=DEFAULT_TRAJECTORY_FPS,
-                audio_path=str(speech.audio_path or ""),
-            )  # fmt: skip
-            h.trajectory = traj
-            self._start(h, traj, lambda out: out.write(speech.audio), speech.sr, asked)
+            assert self._preparer is not None
+            prepared = self._preparer.prepare(req)
+            h.trajectory = prepared.trajectory
+            self._start(h, prepared.trajectory, lambda out: out.write(prepared.audio), prepared.sr, asked)
         except Exception as e:  # reported on the handle; the session goes on
             if not h.done:
                 h._fail(e)

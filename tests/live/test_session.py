@@ -195,20 +195,22 @@ def test_session_refuses_bad_input_with_one_clear_line():
         robot.say("Hi.")
 
 
-def test_an_interrupt_while_a_say_is_still_being_prepared_keeps_it_from_starting(monkeypatch):
+@pytest.mark.parametrize("prepare", ["process", "thread"])
+def test_an_interrupt_while_a_say_is_still_being_prepared_keeps_it_from_starting(monkeypatch, prepare):
     """A voice agent's barge-in can come before the reply's motion exists: that reply must never start."""
     import threading
 
-    with Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST, warm_up=False) as robot:
-        generate = robot._generator.generate
+    opts = {"idle": False, "audio": False, "time_scale": FAST, "warm_up": False, "prepare": prepare}
+    with Robot("humanoid_xl430", backend="sim", **opts) as robot:
+        prepare_say = robot._preparer.prepare
         preparing = threading.Event()
 
-        def slow_generate(*a, **k):
+        def slow_prepare(*a, **k):
             preparing.set()
             time.sleep(0.3)
-            return generate(*a, **k)
+            return prepare_say(*a, **k)
 
-        monkeypatch.setattr(robot._generator, "generate", slow_generate)
+        monkeypatch.setattr(robot._preparer, "prepare", slow_prepare)
         box: dict = {}
         t = threading.Thread(target=lambda: box.update(h=robot.say("Let me tell you about it.", wait=False)))
         t.start()
