@@ -140,10 +140,8 @@ class ProcessPreparer:
 
     def start(self) -> None:
         """Launch the child and send it the robot (it then imports the preparation code)."""
-        import robogest
-
         env = dict(os.environ)
-        root = str(Path(robogest.__file__).resolve().parents[1])  # this robogest, whatever the caller's sys.path
+        root = str(Path(__file__).resolve().parents[2])  # this robogest, whatever the caller's sys.path
         env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, [env.get("PYTHONPATH")])])
         with self._life:
             if self._closed:

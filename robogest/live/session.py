@@ -35,7 +35,6 @@ from typing import Any
 import numpy as np
 
 from robogest.backends.audio import AudioOut, open_output
-from robogest.backends.base import Backend
 from robogest.errors import InputError
 from robogest.live import claims
 from robogest.live.idle import IdleConfig, IdleMotion
@@ -47,58 +46,6 @@ from robogest.robot.registry import DEFAULT_ROBOT
 #: Event types an utterance can report, in the order they usually happen.
 EVENT_TYPES = ("requested", "first_chunk", "first_goal", "started", "audio_start", "done", "interrupted", "error")
 _ids = itertools.count(1)
-
-
-class _PacedSim(Backend):
-    """The MuJoCo backend advanced one control period per goal and paced on the wall clock like hardware.
-
-    A live session must keep time with speech; the control loop paces realtime backends and steps simulated
-    ones flat out, so the simulator is presented as a realtime backend that advances itself on every goal.
-    """
-
-    realtime = True
-
-    def __init__(self, inner: Backend) -> None:
-        super().__init__(inner.robot)
-        self.inner = inner
-
-    @property
-    def is_connected(self) -> bool:
-        return bool(getattr(self.inner, "is_connected", False))
-
-    @property
-    def last_goal_rad(self) -> np.ndarray | None:  # type: ignore[override]
-        return getattr(getattr(self, "inner", None), "last_goal_rad", None)
-
-    @last_goal_rad.setter
-    def last_goal_rad(self, value: np.ndarray | None) -> None:  # the inner backend keeps the real one
-        pass
-
-    def set_control_rate(self, rate_hz: float) -> None:
-        super().set_control_rate(rate_hz)
-        self.inner.set_control_rate(rate_hz)
-
-    def connect(self) -> None:
-        self.inner.connect()
-
-    def read_positions(self) -> np.ndarray:
-        return self.inner.read_positions()
-
-    def set_torque(self, on: bool) -> None:
-        self.inner.set_torque(on)
-
-    def write_goal(self, q_rad: np.ndarray, *, source: str = "") -> None:
-        self.inner.write_goal(q_rad, source=source)  # the inner backend's goal guard checks it
-        self.inner.advance(1.0 / self.control_rate_hz)
-
-    def _send_goal(self, q_rad: np.ndarray) -> None:  # write_goal delegates whole; never called
-        self.inner.write_goal(q_rad)
-
-    def disconnect(self) -> None:
-        self.inner.disconnect()
-
-    def shutdown(self) -> None:
-        self.inner.shutdown()
 
 
 class UtteranceHandle:
@@ -344,7 +291,7 @@ class Robot:
         Raises InputError on a session that was closed: it silently did nothing, and every ``say`` then failed as
         "not open". Make a new :class:`Robot` to connect again.
         """
-        if self._opened and self.loop is not None and self.loop._closed:
+        if self._opened and self.loop is not None and self.loop.closed:
             raise InputError(
                 f"this {self.config.name} session was closed; a closed session is not opened again: make a new "
                 "Robot(...) to connect again"
@@ -374,12 +321,13 @@ class Robot:
 
             self._blas = threadpool_limits(limits=int(self.blas_threads), user_api="blas")
         factory = get_backend_factory(self.backend_name)
-        # A session runs for hours: the simulator keeps no log of its own.
-        opts = {"record": False} if self.backend_name == "sim" else {"port": self.port, "baudrate": self.baudrate}
+        # A session runs for hours: the simulator keeps no log of its own, and keeps time with speech (the control
+        # loop then ticks it on the wall clock, one period per tick, like hardware).
+        opts: dict[str, object] = {"record": False, "pace": True}
+        if self.backend_name != "sim":
+            opts = {"port": self.port, "baudrate": self.baudrate}
         opts.update(self.backend_options)
         be = factory(self.config, **opts)
-        if not be.realtime:
-            be = _PacedSim(be)
         self._ik = DirectionIK(self.config)
         self._rhythm = make_generator("rhythm")
         self._generator = (
@@ -404,6 +352,13 @@ class Robot:
             be, self.rate_hz, threaded=True, time_scale=self.time_scale, on_tick=self.on_tick,
             stop_within_s=self.stop_within_s,
         )  # fmt: skip
+        if not self.loop.wall_clock:
+            from robogest.errors import BackendError
+
+            raise BackendError(
+                f"backend {self.backend_name!r} is simulated and does not keep wall-clock time; a live session plays "
+                "with speech: give it backend_options={'pace': True} if it can pace"
+            )
         self._opened = True
         try:
             self.loop.start()
@@ -435,7 +390,7 @@ class Robot:
             idle = IdleMotion(self.config, self.idle_config, retargeter=self._idle_ik)
             with self._say_lock:
                 loop = self.loop
-                if not loop._closed and loop._error is None and (loop._rest is None or loop._rest.done):
+                if not loop.closed and loop.error is None and (loop.resting is None or loop.resting.done):
                     self.idle = idle
                     loop.set_idle(self._idle_target)
                 else:
@@ -446,7 +401,7 @@ class Robot:
     def _holds_robot(self) -> bool:
         """Open and alive: its control loop runs (a session whose backend failed went to rest, torque off)."""
         loop = self.loop
-        return bool(self._opened and loop is not None and not loop._closed and loop._error is None)
+        return bool(self._opened and loop is not None and not loop.closed and loop.error is None)
 
     @property
     def ready(self) -> bool:
@@ -521,7 +476,7 @@ class Robot:
     def _release_native(self) -> None:
         """At interpreter exit, after :meth:`close`: drop the limiter's native (ruckig) objects before the
         interpreter tears the extension modules down (nanobind reports those still alive as "leaked")."""
-        if self.loop is not None and self.loop._closed:
+        if self.loop is not None and self.loop.closed:
             self.loop.limiter = None
 
     def __enter__(self) -> Robot:
@@ -563,9 +518,9 @@ class Robot:
     # --- utterances ---------------------------------------------------------------------------------
     def _check_open(self) -> None:
         loop = self.loop
-        if loop is not None and loop._error is not None:
-            raise loop._error  # the backend failed: torque is already off
-        if not self._opened or loop is None or loop._closed:
+        if loop is not None and loop.error is not None:
+            raise loop.error  # the backend failed: torque is already off
+        if not self._opened or loop is None or loop.closed:
             raise InputError("robot session is not open (never opened, or closed); use `with Robot(...) as robot:`")
 
     def say(
@@ -762,7 +717,7 @@ class Robot:
             except RuntimeError:  # the session closed meanwhile: its own glide took the robot to rest
                 return
             with self._say_lock:  # not between a newer interrupt's check and its glide
-                if self.idle is not None and not self.loop._closed and self.loop._rest is rest:
+                if self.idle is not None and not self.loop.closed and self.loop.resting is rest:
                     self._idle_resume()
                     self.loop.set_idle(self._idle_target)
 
@@ -777,7 +732,7 @@ class Robot:
         """Why the session died (the control loop failed: a servo lost, the port gone; it went to rest and turned
         torque off), or None while it lives. What a server polls to tell its clients at once."""
         loop = self.loop
-        return None if loop is None else loop._error
+        return None if loop is None else loop.error
 
     def status(self) -> dict:
         """Session state as plain data (what ``robogest serve`` answers to ``status``)."""
@@ -787,7 +742,7 @@ class Robot:
         return {
             "robot": self.config.name,
             "backend": self.backend_name,
-            "open": bool(self._opened and loop is not None and not loop._closed),
+            "open": bool(self._opened and loop is not None and not loop.closed),
             "error": None if err is None else str(err),
             "speaking": bool(cur is not None and not cur.done),
             "utterance": cur.id if cur is not None else None,
@@ -845,7 +800,7 @@ class StreamUtterance:
         return self
 
     def __exit__(self, et: type[BaseException] | None, *exc: object) -> None:
-        if et is not None and not self._dead and self.robot.loop is not None and not self.robot.loop._closed:
+        if et is not None and not self._dead and self.robot.loop is not None and not self.robot.loop.closed:
             with contextlib.suppress(Exception):
                 self.robot.interrupt(wait=issubclass(et, Exception))
             return
@@ -973,7 +928,7 @@ class StreamUtterance:
             # Speech and motion play L behind the audio as it arrives (so every beat is heard before its stroke
             # plays), or later if this first plan came later.
             start_at = None
-            if r.loop.backend.realtime and self._t_first is not None:
+            if r.loop.wall_clock and self._t_first is not None:
                 start_at = max(r.loop.now_s, r.loop.loop_s_at(self._t_first + self.speech.lookahead_s))
             try:
                 play = r.loop.play(self.planner.feed, start_at=start_at, approach_within_rad=r.approach_within_rad)

@@ -124,7 +124,7 @@ def test_a_script_that_exits_without_close_ends_at_rest_and_prints_no_leak_messa
         "import atexit\n"
         "from robogest import Robot\n"
         "robot = Robot('humanoid_xl430', backend='sim', audio=False, warm_up=False)\n"
-        "atexit.register(lambda: print('closed at exit:', robot.loop._closed, flush=True))  # runs after robogest's\n"
+        "atexit.register(lambda: print('closed at exit:', robot.loop.closed, flush=True))  # runs after robogest's\n"
         "robot.open()\n"
         "h = robot.say('Hello there, and goodbye.', wait=False)\n"
         "h.wait_started(120)\n"
@@ -176,7 +176,7 @@ def test_await_say_stream_and_interrupt_never_block_the_event_loop():
             out["stream_events"] = {e["type"] for e in s.handle.events}
             with pytest.raises(InputError, match="no_such_file"):
                 await robot.say(audio=str(ROOT / "no_such_file.wav"))
-        out["closed"] = robot.robot.loop._closed
+        out["closed"] = robot.robot.loop.closed
         return out
 
     out = asyncio.run(main())
@@ -191,10 +191,10 @@ def test_await_say_stream_and_interrupt_never_block_the_event_loop():
 def test_a_session_whose_robot_failed_does_not_keep_it_from_being_opened_again():
     """What serve's reopen does after a servo was lost: the dead session holds nothing."""
     with Robot("humanoid_xl430", **FAST) as dead:
-        dead.loop._error = BackendError("servo id 3: lost (simulated)")
+        dead.loop.error = BackendError("servo id 3: lost (simulated)")
         with Robot("humanoid_xl430", **FAST) as again:
             assert again.status()["open"]
-        dead.loop._error = None
+        dead.loop.error = None
 
 
 def test_per_call_styles_are_the_clis():

@@ -291,8 +291,8 @@ def test_a_signal_as_open_finishes_still_ends_at_rest_with_torque_off(monkeypatc
     robot = Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST, warm_up=False)
     with pytest.raises(KeyboardInterrupt), robot:
         pass
-    assert robot.loop._closed and not robot.loop._thread.is_alive()
-    assert robot.loop.backend.inner._torque is False
+    assert robot.loop.closed and not robot.loop._thread.is_alive()
+    assert robot.loop.backend._torque is False
 
 
 def test_says_streams_and_interrupts_from_several_threads_never_deadlock_and_end_at_rest():
