@@ -21,9 +21,8 @@ Two ways to run it, sharing every line of the tick:
   advanced by one period per tick, so runs are deterministic.
 
 :meth:`ControlLoop.close` (idempotent) glides to rest, then calls ``backend.shutdown()`` (torque off,
-disconnect). :func:`go_to_rest` is the same glide for a backend without a running loop (what every backend's
-``shutdown`` uses). :func:`signals_end_at_rest` turns SIGINT, SIGTERM, SIGHUP and SIGQUIT into :class:`Interrupted`
-so the same path runs, and keeps a second signal from cutting the glide short.
+disconnect); :func:`go_to_rest` is the same glide without a running loop, :func:`signals_end_at_rest` the signals
+that run it (both re-exported from :mod:`robogest.backends.rest` and :mod:`robogest.backends.signals`).
 """
 
 from __future__ import annotations
@@ -121,7 +120,7 @@ class ControlLoop:
         self._play: PlayHandle | None = None
         self._rest: PlayHandle | None = None
         self._idle: Callable[[float], np.ndarray] | None = None
-        self._hold: np.ndarray | None = None
+        self._hold: np.ndarray = self.rest_q_rad  # the pose held when nothing plays (set when the loop starts)
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self.error: BaseException | None = None  #: why the loop failed (it went to rest, torque off), or None
@@ -151,9 +150,12 @@ class ControlLoop:
     @property
     def goal_rad(self) -> np.ndarray:
         """Last goal sent ``(J,)``, radians."""
+        return np.array(self._lim().q_rad, dtype=float)
+
+    def _lim(self) -> OnlineLimiter:
         if self.limiter is None:
             raise RuntimeError("control loop not started")
-        return self.limiter.q_rad.copy()
+        return self.limiter
 
     # --- life cycle --------------------------------------------------------------------------------
     def start(self) -> ControlLoop:
@@ -360,11 +362,11 @@ class ControlLoop:
             tr = h.trajectory
             if h.phase == "wait" and (h.start_at is None or t >= h.start_at - 1e-9):
                 h.phase = "approach"
-                h.held = self.limiter.q_rad.copy()
+                h.held = self._lim().q_rad.copy()
             if h.phase == "approach":
-                first = self.limiter.clamp_target(tr.sample(0.0))
-                gap = np.max(np.abs(self.limiter.q_rad - first))
-                if (gap <= _DONE_TOL_RAD and self.limiter.still) or gap <= h.approach_within_rad:
+                first = self._lim().clamp_target(tr.sample(0.0))
+                gap = np.max(np.abs(self._lim().q_rad - first))
+                if (gap <= _DONE_TOL_RAD and self._lim().still) or gap <= h.approach_within_rad:
                     h.phase = "run"
                     h.t_run0 = t
                     h._mark("started", t)
@@ -395,7 +397,7 @@ class ControlLoop:
         return "control loop, idle motion" if self._idle is not None else "control loop, holding"
 
     def _tick(self) -> None:
-        lim = self.limiter
+        lim = self._lim()
         t = self.now_s
         with self._lock:
             target, target_v, h = self._target(t)
@@ -410,7 +412,7 @@ class ControlLoop:
             self.backend.write_goal(q, source=self._source_name(h))
             lim.commit()
             departs = h is not None and h.held is not None and np.max(np.abs(q - h.held)) > 1e-9
-            if departs and "first_goal" not in h.events:
+            if departs and h is not None and "first_goal" not in h.events:
                 h._mark("first_goal", t)
             if h is not None and (h.phase == "finish" or h is self._rest) and lim.settled(_DONE_TOL_RAD):
                 h.phase = "done"
@@ -445,12 +447,12 @@ class ControlLoop:
             return f"could not reach rest ({e})"
         if not rest.done:
             return f"did not reach rest within {timeout_s:.3g} s"
-        if np.any(self.limiter.q_rad != self.rest_q_rad):  # settled within rounding (a glide that took over a motion)
+        if np.any(self._lim().q_rad != self.rest_q_rad):  # settled within rounding (a glide that took over a motion)
             try:
                 self.backend.write_goal(self.rest_q_rad, source="control loop, glide to rest")
             except RobogestError as e:
                 return f"could not reach rest ({e})"
-            self.limiter.reset(self.rest_q_rad)
+            self._lim().reset(self.rest_q_rad)
             if not self.backend.realtime:
                 self.backend.advance(self.period_s)  # one more tick of simulated time
         self._settle()
@@ -467,7 +469,7 @@ class ControlLoop:
         """How long the glide to rest may take before it is given up: :data:`REST_TIMEOUT_S`, or longer for slow
         limits (1.5 times the time-optimal bound, plus 2 s): a timeout turns torque off away from rest."""
         try:
-            bound = self.limiter.time_to_reach_s(self.rest_q_rad)
+            bound = self._lim().time_to_reach_s(self.rest_q_rad)
         except RobogestError:
             return REST_TIMEOUT_S
         return max(REST_TIMEOUT_S, 1.5 * bound + 2.0)

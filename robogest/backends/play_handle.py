@@ -17,9 +17,6 @@ class Playable(Protocol):
     """What the loop plays: a :class:`~robogest.trajectory.Trajectory`, or a
     :class:`~robogest.live.planner.TrajectoryFeed` that grows while it plays. Poses ``(J,)`` radians."""
 
-    joint_names: list[str]
-    fps: float
-
     @property
     def duration_s(self) -> float: ...
 

@@ -22,7 +22,8 @@ def start_pose(q_read_rad: np.ndarray, robot: RobotConfig, period_s: float) -> n
     half a step covers the reading's noise (a tick or two) where the reading itself could be refused."""
     q = np.clip(np.asarray(q_read_rad, dtype=float), robot.q_min_rad, robot.q_max_rad)
     rest, step = robot.rest_q_rad, 0.5 * robot.v_max_rad_s * period_s
-    return np.where(robot.held_mask, q + np.clip(rest - q, -step, step), q)
+    held: np.ndarray = np.where(robot.held_mask, q + np.clip(rest - q, -step, step), q)
+    return held
 
 
 def go_to_rest(backend: Backend, rate_hz: float | None = None) -> str | None:
@@ -38,7 +39,8 @@ def go_to_rest(backend: Backend, rate_hz: float | None = None) -> str | None:
     """
     from robogest.backends.control import ControlLoop  # (it imports this module)
 
-    loop = ControlLoop(backend, rate_hz or getattr(backend, "control_rate_hz", DEFAULT_RATE_HZ), threaded=False)
+    rate = float(getattr(backend, "control_rate_hz", DEFAULT_RATE_HZ)) if rate_hz is None else rate_hz
+    loop = ControlLoop(backend, rate, threaded=False)
     last = getattr(backend, "last_goal_rad", None)
     v0 = getattr(backend, "last_goal_v_rad_s", None)
     a0 = getattr(backend, "last_goal_a_rad_s2", None)

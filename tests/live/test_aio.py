@@ -26,13 +26,13 @@ TEXT = "So here is the plan. We walk to the door, then we turn left and wait for
 @pytest.mark.parametrize("prepare", ["thread", "process"])
 def test_say_is_prepared_off_the_callers_thread_and_its_failure_is_raised_by_wait_and_reported_as_an_event(prepare):
     with Robot("humanoid_xl430", prepare=prepare, **FAST) as robot:
-        generate, threads = robot._generator.generate, []
+        generate, threads = robot.planning.generator.generate, []
 
         def spy(*a, **k):
             threads.append(threading.current_thread().name)
             return generate(*a, **k)
 
-        robot._generator.generate = spy
+        robot.planning.generator.generate = spy
         h = robot.say("Hello there.", wait=False)
         assert h.wait(60) and h.event("done") is not None
         # the session's worker, not the caller's thread; or not this process at all

@@ -62,7 +62,7 @@ def test_the_child_process_prepares_a_say_bit_for_bit_as_the_thread_does():
 @pytest.mark.slow
 def test_failures_in_the_child_are_the_same_exceptions_on_the_handle_and_a_dead_child_is_restarted(capfd):
     with Robot("humanoid_xl430", **FAST) as robot:
-        child = robot._preparer
+        child = robot.planning.preparer
         assert isinstance(child, ProcessPreparer)
         bad_tag = robot.say("Hello ^nosuchtag there.", wait=False)
         with pytest.raises(InputError, match="nosuchtag"):
@@ -93,7 +93,7 @@ def test_failures_in_the_child_are_the_same_exceptions_on_the_handle_and_a_dead_
 
 def test_the_session_prepares_in_a_thread_when_asked_and_refuses_an_unknown_mode():
     with Robot("humanoid_xl430", prepare="thread", **FAST) as robot:
-        assert isinstance(robot._preparer, SayPreparer)
+        assert isinstance(robot.planning.preparer, SayPreparer)
         with pytest.raises(InputError, match="nosuchtag"):
             robot.say("Hello ^nosuchtag there.")
     with pytest.raises(InputError, match="prepare"):
@@ -104,7 +104,7 @@ def test_the_session_prepares_in_a_thread_when_asked_and_refuses_an_unknown_mode
 def test_ready_includes_the_childs_first_say():
     with Robot("humanoid_xl430", **{**FAST, "warm_up": True}) as robot:
         assert robot.wait_ready(180)
-        child = robot._preparer
+        child = robot.planning.preparer
         assert isinstance(child, ProcessPreparer)
         assert child.served == 1  # the warm-up say: the first real one pays no imports
 
@@ -115,7 +115,7 @@ from robogest import Robot
 robot = Robot('humanoid_xl430', backend='sim', audio=False, idle=False)
 with robot:
     robot.wait_ready(180)
-    print(robot._preparer.pid, flush=True)
+    print(robot.planning.preparer.pid, flush=True)
     h = robot.say('Here is a long story that is still being prepared when the end comes. ' * 10, wait=False)
     time.sleep(0.3)
     if sys.argv[1] == 'crash':

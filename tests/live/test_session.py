@@ -202,7 +202,7 @@ def test_an_interrupt_while_a_say_is_still_being_prepared_keeps_it_from_starting
 
     opts = {"idle": False, "audio": False, "time_scale": FAST, "warm_up": False, "prepare": prepare}
     with Robot("humanoid_xl430", backend="sim", **opts) as robot:
-        prepare_say = robot._preparer.prepare
+        prepare_say = robot.planning.preparer.prepare
         preparing = threading.Event()
 
         def slow_prepare(*a, **k):
@@ -210,7 +210,7 @@ def test_an_interrupt_while_a_say_is_still_being_prepared_keeps_it_from_starting
             time.sleep(0.3)
             return prepare_say(*a, **k)
 
-        monkeypatch.setattr(robot._preparer, "prepare", slow_prepare)
+        monkeypatch.setattr(robot.planning.preparer, "prepare", slow_prepare)
         box: dict = {}
         t = threading.Thread(target=lambda: box.update(h=robot.say("Let me tell you about it.", wait=False)))
         t.start()
@@ -229,7 +229,7 @@ def test_plans_of_streams_and_the_warm_up_never_share_the_ik_solver_at_once():
     import threading
 
     with Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST) as robot:
-        retarget, inside, worst = robot._ik.retarget, [0], [0]
+        retarget, inside, worst = robot.planning.ik.retarget, [0], [0]
         count = threading.Lock()
 
         def counted(*a, **k):
@@ -243,7 +243,7 @@ def test_plans_of_streams_and_the_warm_up_never_share_the_ik_solver_at_once():
                 with count:
                     inside[0] -= 1
 
-        robot._ik.retarget = counted
+        robot.planning.ik.retarget = counted
         sp = synthesize("One, two, three, four.")
         streams = [robot.stream(sp.sr), robot.stream(sp.sr)]  # the warm-up runs too
         for i in range(0, len(sp.audio), 1600):
