@@ -12,7 +12,8 @@ Utterances:
   layer; :mod:`robogest.live.prepare`, in a child process by default) makes a trajectory, the loop plays it;
 * :meth:`Robot.stream` - PCM chunks from a voice agent (:mod:`robogest.live.stream`), planned while they play.
 
-Every utterance returns an :class:`~robogest.live.utterance.UtteranceHandle`. Options: :class:`SessionConfig`.
+Every utterance returns an :class:`~robogest.live.utterance.UtteranceHandle`. Options: :class:`SessionConfig`. What
+plays, the says being prepared and the audio are changed only in the session's owner thread (:mod:`.owner`).
 """
 
 from __future__ import annotations
@@ -23,17 +24,16 @@ import sys
 import threading
 import time
 import weakref
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
-
-import numpy as np
 
 from robogest.backends.audio import AudioOut, open_output
 from robogest.errors import BackendError, InputError
 from robogest.live import claims
 from robogest.live.config import SessionConfig
 from robogest.live.idle import IdleConfig, IdleMotion
+from robogest.live.idle_control import IdlePlayer
+from robogest.live.owner import Owner
 from robogest.live.planning import Planning
 from robogest.live.prepare import SayRequest
 from robogest.live.stream import StreamUtterance
@@ -42,7 +42,8 @@ from robogest.live.utterance import EVENT_TYPES, UtteranceHandle
 from robogest.live.worker import Worker
 
 if TYPE_CHECKING:
-    from robogest.backends.control import ControlLoop
+    from robogest.backends.control import ControlLoop, PlayHandle
+    from robogest.trajectory import Trajectory
 from robogest.robot.registry import DEFAULT_ROBOT
 
 
@@ -88,19 +89,19 @@ class Robot:
         self.planning: Planning | None = None  #: IK, generators and the say preparer (made by open())
         self._blas: Any = None
         self.loop: ControlLoop | None = None
-        self.idle: IdleMotion | None = None
+        self.idle: IdlePlayer | None = None  #: the idle motion, once tabulated (robogest.live.idle_control)
         self.audio_note = ""  #: why speech audio is not played ("" when it is)
         self._sd: Any = None
         self._exit = contextlib.ExitStack()
-        self._current: UtteranceHandle | None = None
-        self._audio: AudioOut | None = None
         self._opened = False
-        self._say_lock = threading.Lock()
-        self._interrupts = 0  #: interrupt() calls so far: an utterance asked for before one is not started after
-        self._streams: weakref.WeakSet[StreamUtterance] = weakref.WeakSet()  # every stream not yet finished
         self._worker: Worker | None = None  #: gets the session ready, then prepares says (off the caller's thread)
         self._claim: tuple[str, str] | None = None  #: what this session holds (robogest.live.claims)
-        self._preparing: set[UtteranceHandle] = set()  #: says asked for and not yet playing (under _say_lock)
+        # The utterance state, owned by one thread (robogest.live.owner): changed only by messages run there.
+        self._owner = Owner("robogest-session")
+        self._current: UtteranceHandle | None = None  #: the utterance playing last (read by status())
+        self._audio: AudioOut | None = None  #: the speech audio playing
+        self._preparing: set[UtteranceHandle] = set()  #: says asked for and not yet playing
+        self._streams: weakref.WeakSet[StreamUtterance] = weakref.WeakSet()  #: every stream not yet finished
 
     # --- life cycle --------------------------------------------------------------------------------
     def open(self) -> Robot:
@@ -174,6 +175,7 @@ class Robot:
                 self._blas = None
             raise
         try:
+            self._owner.start()
             self._worker = Worker(self._background_start, name="robogest-warm-up")
             self._worker.start()
         except BaseException:  # e.g. a signal right here: the loop holds the robot with torque on
@@ -188,13 +190,9 @@ class Robot:
             self.planning.start_preparer()
         if self._idle_ik is not None:
             idle = IdleMotion(self.config, self.idle_config, retargeter=self._idle_ik)
-            with self._say_lock:
-                loop = self.loop
-                if loop and not loop.closed and loop.error is None and (loop.resting is None or loop.resting.done):
-                    self.idle = idle
-                    loop.set_idle(self._idle_target)
-                else:
-                    self.idle = idle  # an interrupt in progress turns it on when it reaches rest
+            assert self.loop is not None  # (this runs once the loop holds the robot)
+            self.idle = IdlePlayer(self.loop, idle)
+            self._owner.call(self.idle.switch_on)
         if self.options.warm_up:
             self._warm_up()
 
@@ -232,8 +230,7 @@ class Robot:
         reached, or None."""
         if not self._opened or self.loop is None:
             return None
-        with self._say_lock:
-            self._cancel_locked()
+        self._owner.call(self._cancel)
         try:
             return self.loop.close()
         finally:
@@ -243,6 +240,7 @@ class Robot:
                 if self._worker is not None:  # joined: a thread left in numba code can crash the exit
                     self._worker.stop()
             finally:
+                self._owner.stop()
                 if self._blas is not None:
                     self._blas.restore_original_limits()
                     self._blas = None
@@ -273,22 +271,13 @@ class Robot:
     # --- idle ---------------------------------------------------------------------------------------
     def _idle_stop(self) -> None:
         """Speech is coming: the idle motion fades out now (see :meth:`IdleMotion.stop`)."""
-        if self.idle is not None and self.loop is not None:
-            self.idle.stop(self.loop.now_s)
+        if self.idle is not None:
+            self.idle.fade_out()
 
     def _idle_resume(self) -> None:
         """No speech after all (refused, abandoned, interrupted): the idle motion fades in again."""
-        if self.idle is not None and self.loop is not None:
-            self.idle.restart(self.loop.now_s)
-
-    def _idle_target(self, t_s: float) -> np.ndarray:
-        idle = self.idle
-        assert idle is not None
-        last = getattr(self, "_idle_last_s", None)
-        if last is None or t_s - last > 0.25:  # idle was not playing (late ticks skip less): fade in from zero
-            idle.restart(t_s)
-        self._idle_last_s = t_s
-        return idle.target(t_s)
+        if self.idle is not None:
+            self.idle.fade_in()
 
     # --- utterances ---------------------------------------------------------------------------------
     def check_open(self) -> ControlLoop:
@@ -332,42 +321,35 @@ class Robot:
                              f"{self.options.generator!r} (this session's)")  # fmt: skip
         h = UtteranceHandle("say")
         h._add("requested")
-        with self._say_lock:
-            asked = self._interrupts
-            self._preparing.add(h)
+        self._owner.post(lambda: self._preparing.add(h))  # (an interrupt from now on abandons it)
         self._idle_stop()
-
-        def drop() -> None:
-            self._preparing.discard(h)
-            h._abandon("session closed")
-
-        assert self.planning is not None
+        assert self.planning is not None and self._worker is not None  # (made by open)
         req = self.planning.say_request(text, audio, transcript, body, lenient)
-        assert self._worker is not None  # (made by open)
-        self._worker.submit(lambda: self._prepare(h, asked, req), drop)
+        self._worker.submit(lambda: self._prepare(h, req), lambda: h._abandon("session closed"))
         if wait:
             h.wait()
         return h
 
-    def _prepare(self, h: UtteranceHandle, asked: int, req: SayRequest) -> None:
-        """In the worker: speech, gestures, trajectory (by the preparer: here or in the child process), then play
-        (unless interrupted since it was asked for)."""
+    def _prepare(self, h: UtteranceHandle, req: SayRequest) -> None:
+        """In the worker: speech, gestures, trajectory (by the preparer: here or in the child process); the owner
+        then plays it, unless interrupted since it was asked for."""
         try:
-            if self._interrupts != asked:  # barge-in before its turn: nothing to prepare
-                h._abandon("interrupt")
+            if h.done:  # barge-in before its turn (interrupt() abandoned it): nothing to prepare
                 self._idle_resume()
                 return
             assert self.planning is not None
             prepared = self.planning.preparer.prepare(req)
             h.trajectory = prepared.trajectory
-            self._start(h, prepared.trajectory, lambda out: out.write(prepared.audio), prepared.sr, asked)
+            out = AudioOut(self._sd, prepared.sr)
+            out.write(prepared.audio)
+            out.finish()
+            out.open()  # outside the control tick that starts it
+            self._owner.post(lambda: self._play(h, prepared.trajectory, out))
         except Exception as e:  # reported on the handle; the session goes on
+            self._owner.post(lambda: self._preparing.discard(h))
             if not h.done:
                 h._fail(e)
             self._idle_resume()
-        finally:
-            with self._say_lock:
-                self._preparing.discard(h)
 
     def stream(
         self,
@@ -390,47 +372,41 @@ class Robot:
             self, self.planning, int(sample_rate), self.lookahead_s if lookahead_s is None else lookahead_s, gen
         )
 
-    def _start(
-        self, h: UtteranceHandle, traj: Any, fill: Callable[[AudioOut], None] | None, sr: int, asked: int
-    ) -> None:
-        """Hand ``traj`` to the loop; audio (``fill`` writes it) starts when the trajectory does. Not if
-        :meth:`interrupt` was called since the utterance was asked for (``asked``: the count then)."""
-        out = AudioOut(self._sd, sr)
-        if fill is not None:
-            fill(out)
-            out.finish()
-        out.open()  # outside the control tick that starts it
+    def _play(self, h: UtteranceHandle, traj: Trajectory, out: AudioOut) -> None:
+        """In the owner: hand ``traj`` to the loop, its audio to start with it; not if :meth:`interrupt` abandoned
+        it since it was asked for (the idle motion then comes back)."""
+        if h not in self._preparing:
+            out.stop()
+            h._abandon("interrupt")
+            self._idle_resume()
+            return
+        self._preparing.discard(h)
 
         def on_start() -> None:  # in the loop's tick: keep short
             play.on_start = None  # called once: the handle kept after the utterance must not keep its audio
-            played = out.start()
-            h._add("audio_start", played=played)
+            h._add("audio_start", played=out.start())
 
-        with self._say_lock:  # an interrupt now waits until this play is in the loop, where it stops it
-            self._preparing.discard(h)
-            if self._interrupts != asked:
-                out.stop()
-                h._abandon("interrupt")
-            else:
-                self._replace_audio(out)
-                play = self.check_open().play(traj, approach_within_rad=self.approach_within_rad)
-                play.on_start = on_start
-                self._current = h
-                h._attach(play)
-        if h._play is None:  # abandoned: the idle motion comes back
-            self._idle_resume()
+        try:
+            play = self.check_open().play(traj, approach_within_rad=self.approach_within_rad)
+        except Exception as e:  # the session died or closed meanwhile
+            out.stop()
+            h._fail(e)
+            return
+        play.on_start = on_start
+        self._replace_audio(out)
+        self._current = h
+        h._attach(play)
 
     def _replace_audio(self, out: AudioOut | None) -> None:
-        """The caller holds ``_say_lock``: the speech audio playing stops (unless it is ``out``); ``out`` (None:
-        nothing) becomes the session's."""
+        """In the owner: the speech audio playing stops (unless it is ``out``); ``out`` (None: nothing) becomes the
+        session's."""
         if self._audio is not None and self._audio is not out:
             self._audio.stop()
         self._audio = out
 
-    def _cancel_locked(self) -> None:
-        """The caller holds ``_say_lock``: utterances asked for so far are not started (:meth:`_start`), the audio
-        stops, and every unfinished stream is interrupted (lock order: ``_say_lock``, then a stream's ``_state``)."""
-        self._interrupts += 1
+    def _cancel(self) -> None:
+        """In the owner: utterances asked for so far are not started (:meth:`_play`), the audio stops, and every
+        unfinished stream is interrupted."""
         for h in list(self._preparing):  # done now: whoever awaits a barged-in reply hears of it at once
             h._abandon("interrupt")
         self._preparing.clear()
@@ -446,27 +422,44 @@ class Robot:
         """
         loop = self.check_open()
         t0 = time.monotonic()
-        # Under the lock, through the glide's start: the idle motion cannot be switched on in between
-        # (_background_start). StreamUtterance._start takes _say_lock and its _state one after the other, not nested.
-        with self._say_lock:
-            self._cancel_locked()
-            rest = loop.interrupt()
+
+        # One message: the idle motion cannot be switched on between the cancel and the glide's start.
+        def cancel_and_glide() -> PlayHandle:
+            self._cancel()
+            return loop.interrupt()
+
+        rest = self._owner.call(cancel_and_glide)
 
         def resume() -> None:
             try:
                 rest.wait()
             except RuntimeError:  # the session closed meanwhile: its own glide took the robot to rest
                 return
-            with self._say_lock:  # not between a newer interrupt's check and its glide
-                if self.idle is not None and not loop.closed and loop.resting is rest:
-                    self._idle_resume()
-                    loop.set_idle(self._idle_target)
+            idle = self.idle
+            if idle is not None:
+                self._owner.call(lambda: idle.after_glide(rest))
 
         if not wait:
             threading.Thread(target=resume, daemon=True, name="robogest-resume-idle").start()
             return {"interrupt_s": t0, "at_rest_s": None}
         resume()
         return {"interrupt_s": t0, "at_rest_s": rest.events["done"].monotonic_s if "done" in rest.events else None}
+
+    # --- what a stream tells the session (run in the owner, in order with everything else) ---------------------
+    def _stream_opened(self, st: StreamUtterance, opened: bool = True) -> None:
+        self._owner.post(lambda: self._streams.add(st) if opened else self._streams.discard(st))
+
+    def _stream_playing(self, st: StreamUtterance, out: AudioOut) -> None:
+        """Its first frames play: it replaces the utterance playing (whose audio stops now), unless interrupted."""
+
+        def message() -> None:
+            if st.dead:  # interrupted since its play began
+                out.stop()
+                return
+            self._replace_audio(out)
+            self._current = st.handle
+
+        self._owner.post(message)
 
     @property
     def error(self) -> BaseException | None:

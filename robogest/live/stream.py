@@ -62,7 +62,7 @@ class StreamUtterance:
         self._state = threading.Lock()  # starting the motion vs. an interrupt
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._thread = threading.Thread(target=self._run, daemon=True, name=f"robogest-stream-{self.handle.id}")
-        robot._streams.add(self)  # the utterance playing keeps its audio until this one has motion (_start)
+        robot._stream_opened(self)  # the utterance playing keeps its audio until this one has motion (_start)
         self._thread.start()
 
     def __enter__(self) -> StreamUtterance:
@@ -74,6 +74,11 @@ class StreamUtterance:
                 self.robot.interrupt(wait=issubclass(et, Exception))
             return
         self.close()
+
+    @property
+    def dead(self) -> bool:
+        """Interrupted, or stopped by a failure: nothing more of it plays."""
+        return self._dead
 
     def _interrupt(self) -> None:
         with self._state:
@@ -132,7 +137,7 @@ class StreamUtterance:
         try:
             self._serve()
         finally:
-            self.robot._streams.discard(self)  # planned to the end (or stopped): interrupt() stops its motion
+            self.robot._stream_opened(self, False)  # planned to the end (or stopped): interrupt() stops its motion
 
     def _serve(self) -> None:
         try:
@@ -220,12 +225,7 @@ class StreamUtterance:
 
             play.on_start = on_start
             h._attach(play)
-        with r._say_lock:  # this utterance replaces the one playing: its audio stops now, not at feed time
-            if self._dead:  # interrupted since the play began (interrupt() holds this lock throughout)
-                out.stop()
-                return
-            r._replace_audio(out)
-            r._current = h
+        r._stream_playing(self, out)  # this utterance replaces the one playing: its audio stops now
 
     def close(self) -> UtteranceHandle:
         """No more speech: the rest is planned (ending at rest) and plays out. Returns the handle at once."""
