@@ -66,8 +66,9 @@ class ControlLoop:
         Ticks per wall-clock second; default 100 Hz.
     on_tick : callable (loop_s, goal_rad), optional
         Called after every tick with the loop time (s) and the goal ``(J,)`` sent (rad); keep it short.
-    threaded : bool, optional
-        Tick in a background thread; default ``backend.realtime``.
+    threaded, wall_clock : bool, optional
+        Tick in a background thread; ticks due on the wall clock (a simulated backend is then advanced one period
+        per tick, paced like hardware: a live session). Both default to ``backend.realtime``.
     read_back : bool
         Read present positions every tick (a lost servo or hardware error is caught within a tick).
     time_scale : float
@@ -91,6 +92,7 @@ class ControlLoop:
         *,
         on_tick: Callable[[float, np.ndarray], None] | None = None,
         threaded: bool | None = None,
+        wall_clock: bool | None = None,
         read_back: bool = True,
         time_scale: float = 1.0,
         margin_rad: float = LIMIT_MARGIN_RAD,
@@ -126,8 +128,7 @@ class ControlLoop:
         self.error: BaseException | None = None  #: why the loop failed (it went to rest, torque off), or None
         self._started = False
         self.closed = False  #: :meth:`close` ran (also after a failure: the loop closes itself)
-        #: ticks are due on the wall clock: a realtime backend, or a simulator that paces itself (``pace``)
-        self.wall_clock = backend.realtime or bool(getattr(backend, "pace", False))
+        self.wall_clock = backend.realtime if wall_clock is None else bool(wall_clock)
 
     @property
     def resting(self) -> PlayHandle | None:
@@ -459,8 +460,7 @@ class ControlLoop:
         return None
 
     def glide_from(self, q0: np.ndarray, v0: np.ndarray | None = None, a0: np.ndarray | None = None) -> str | None:
-        """A loop never started: take over a motion at ``q0 (J,)`` rad (velocity ``v0``, acceleration ``a0``, or
-        still) and glide to rest in this thread (:func:`~robogest.backends.rest.go_to_rest`). None at rest."""
+        """Not started: take over a motion at ``q0 (J,)`` rad (``v0``, ``a0``: or still), glide to rest here."""
         self._adopt(q0, v0, a0)
         self._started = True
         return self._glide_to_rest()

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robogest.backends.audio import AudioOut, open_output
-from robogest.errors import BackendError, InputError
+from robogest.errors import InputError
 from robogest.live import claims
 from robogest.live.config import SessionConfig
 from robogest.live.idle import IdleConfig, IdleMotion
@@ -91,7 +91,7 @@ class Robot:
         self.loop: ControlLoop | None = None
         self.idle: IdlePlayer | None = None  #: the idle motion, once tabulated (robogest.live.idle_control)
         self.audio_note = ""  #: why speech audio is not played ("" when it is)
-        self._sd: Any = None
+        self.audio_device: Any = None  #: the ``sounddevice`` module speech plays through (None: not played)
         self._exit = contextlib.ExitStack()
         self._opened = False
         self._worker: Worker | None = None  #: gets the session ready, then prepares says (off the caller's thread)
@@ -140,7 +140,7 @@ class Robot:
             self._blas = threadpool_limits(limits=int(self.options.blas_threads), user_api="blas")
         factory = get_backend_factory(self.backend_name)
         # A session runs for hours: the simulator keeps no log of its own, and keeps time with speech (the control
-        # loop then ticks it on the wall clock, one period per tick, like hardware).
+        # loop ticks every backend on the wall clock: a simulator one period per tick, paced like hardware).
         opts: dict[str, object] = {"record": False, "pace": True}
         if self.backend_name != "sim":
             opts = {"port": self.options.port, "baudrate": self.options.baudrate}
@@ -149,21 +149,16 @@ class Robot:
         self.planning = Planning(self.config, self.options, self.lookahead_s)
         self._idle_ik = DirectionIK(self.config) if self.idle_enabled else None  # its own: built in the background
         if self.want_audio:
-            self._sd, self.audio_note = open_output()
+            self.audio_device, self.audio_note = open_output()
             if self.audio_note:  # one line, once per session
                 print(f"robogest: speech audio is not played ({self.audio_note}); utterance events carry its "
                       "play times", file=sys.stderr)  # fmt: skip
         else:
             self.audio_note = "audio off" if self.time_scale == 1.0 else "time_scale is not 1"
         self.loop = ControlLoop(
-            be, self.options.rate_hz, threaded=True, time_scale=self.time_scale, on_tick=self.options.on_tick,
-            stop_within_s=self.stop_within_s,
+            be, self.options.rate_hz, threaded=True, wall_clock=True, time_scale=self.time_scale,
+            on_tick=self.options.on_tick, stop_within_s=self.stop_within_s,
         )  # fmt: skip
-        if not self.loop.wall_clock:
-            raise BackendError(
-                f"backend {self.backend_name!r} is simulated and does not keep wall-clock time; a live session plays "
-                "with speech: give it backend_options={'pace': True} if it can pace"
-            )
         self._opened = True
         try:
             self.loop.start()
@@ -340,7 +335,7 @@ class Robot:
             assert self.planning is not None
             prepared = self.planning.preparer.prepare(req)
             h.trajectory = prepared.trajectory
-            out = AudioOut(self._sd, prepared.sr)
+            out = AudioOut(self.audio_device, prepared.sr)
             out.write(prepared.audio)
             out.finish()
             out.open()  # outside the control tick that starts it

@@ -47,7 +47,7 @@ class StreamUtterance:
         self.planner = StreamingPlanner(robot.config, generator, planning.ik, self.speech, seed=robot.seed)
         self.handle = UtteranceHandle("stream")
         self.handle.trajectory = self.planner.feed
-        self._out = AudioOut(robot._sd, sample_rate)
+        self._out = AudioOut(robot.audio_device, sample_rate)
         self._out.open()  # outside the control tick that starts it
         self._chunks: list[tuple[float, int]] = []  # (offset_s, n_samples) of each chunk, for scheduling
         self._offset_n = 0
@@ -165,7 +165,7 @@ class StreamUtterance:
                 playing = self._playing
                 if not playing:
                     self.handle._abandon(f"error: {e}")
-            play = self.handle._play
+            play = self.handle.play_handle
             if playing and play is not None and not play.done:  # still what the robot plays: stop it
                 with contextlib.suppress(Exception):
                     self.robot.interrupt(wait=False)

@@ -10,6 +10,8 @@ import threading
 import time
 from typing import Any
 
+from robogest.backends.play_handle import PlayHandle
+
 #: Event types an utterance can report, in the order they usually happen.
 EVENT_TYPES = ("requested", "first_chunk", "first_goal", "started", "audio_start", "done", "interrupted", "error")
 _ids = itertools.count(1)
@@ -29,7 +31,7 @@ class UtteranceHandle:
         self._own: list[dict] = []
         self._lock = threading.Lock()
         self._attached = threading.Event()
-        self._play: Any = None
+        self._play: PlayHandle | None = None
         self._abandoned = False
         self._error: BaseException | None = None
         self.trajectory: Any = None  #: the Trajectory played (or the growing feed of a stream)
@@ -57,6 +59,11 @@ class UtteranceHandle:
         self._abandoned = True
         self._add("error", message=str(e) or type(e).__name__)
         self._attached.set()
+
+    @property
+    def play_handle(self) -> PlayHandle | None:
+        """The control loop's handle of its motion, once handed to the robot (None before, or if abandoned)."""
+        return self._play
 
     @property
     def error(self) -> BaseException | None:
