@@ -40,3 +40,25 @@ def test_a_failing_posted_message_is_reported_and_the_owner_goes_on(capsys):
     finally:
         owner.stop()
     assert "state change failed" in capsys.readouterr().err
+
+
+def test_the_sessions_utterance_state_changes_only_in_its_owner_thread(monkeypatch):
+    """say, a stream's start, interrupt and close change what plays and its audio in one thread: no lock needed."""
+    import numpy as np
+
+    from robogest.live import Robot
+
+    where: list[str] = []
+    with Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=4.0, warm_up=False) as robot:
+        replace = robot._replace_audio
+        monkeypatch.setattr(robot, "_replace_audio", lambda out: (where.append(threading.current_thread().name),
+                                                                  replace(out))[1])  # fmt: skip
+        assert robot.say("Hello there.").event("done") is not None
+        h = robot.say("And here is a longer one that will not finish.", wait=False)
+        assert h.wait_started(120)
+        robot.interrupt()
+        with robot.stream(16000) as s:
+            t = np.arange(16000) / 16000
+            s.feed((0.3 * np.sin(2 * np.pi * 160 * t)).astype(np.float32))
+        assert s.wait(60)
+    assert len(where) >= 4 and set(where) == {"robogest-session"}, where
