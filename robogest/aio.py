@@ -22,7 +22,10 @@ from __future__ import annotations
 import asyncio
 import time
 from collections.abc import Generator, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from robogest.live import Robot, StreamUtterance, UtteranceHandle
 
 #: How often an awaited utterance is checked, seconds (events arrive on the robot's own threads).
 POLL_S = 0.01
@@ -31,7 +34,7 @@ POLL_S = 0.01
 class AsyncUtterance:
     """An utterance of an :class:`AsyncRobot`: ``await`` it to wait until done (raises its failure)."""
 
-    def __init__(self, handle: Any) -> None:
+    def __init__(self, handle: UtteranceHandle) -> None:
         self.handle = handle  #: the :class:`~robogest.live.UtteranceHandle`
 
     @property
@@ -75,11 +78,20 @@ class AsyncStream:
     def __init__(self, robot: AsyncRobot, kwargs: dict) -> None:
         self._robot = robot
         self._kwargs = kwargs
-        self.stream: Any = None  #: the :class:`~robogest.live.StreamUtterance`, once started
+        self.stream: StreamUtterance | None = None  #: the :class:`~robogest.live.StreamUtterance`, once started
 
     async def start(self) -> AsyncStream:
-        self.stream = await asyncio.to_thread(self._robot.robot.stream, **self._kwargs)
+        robot = self._robot.session
+        self.stream = await asyncio.to_thread(lambda: robot.stream(**self._kwargs))
         return self
+
+    @property
+    def _st(self) -> StreamUtterance:
+        if self.stream is None:
+            from robogest.errors import InputError
+
+            raise InputError("stream: not started; use `async with robot.stream(...) as s` (or await it) first")
+        return self.stream
 
     def __await__(self) -> Generator[Any, None, AsyncStream]:
         return self.start().__await__()
@@ -88,7 +100,7 @@ class AsyncStream:
         return await self.start()
 
     async def __aexit__(self, et: type[BaseException] | None, *exc: object) -> None:
-        st = self.stream
+        st = self._st
         if et is not None:
             await asyncio.to_thread(st.__exit__, et, *exc)
             return
@@ -96,20 +108,20 @@ class AsyncStream:
 
     @property
     def handle(self) -> AsyncUtterance:
-        return AsyncUtterance(self.stream.handle)
+        return AsyncUtterance(self._st.handle)
 
     async def feed(self, chunk: Any, words: Sequence[tuple[str, float, float]] | None = None) -> None:
         """Add a chunk of PCM (and word timings); checks and queues it (the planning runs in the stream's thread)."""
-        self.stream.feed(chunk, words)
+        self._st.feed(chunk, words)
 
     async def close(self) -> AsyncUtterance:
-        self.stream.close()
+        self._st.close()
         return self.handle
 
     async def wait(self, timeout_s: float | None = None) -> bool:
         """Until the streamed utterance is done; raises a failure of its planning thread."""
         done = await self.handle.wait(timeout_s)
-        self.stream.wait(0)
+        self._st.wait(0)
         return done
 
 
@@ -126,7 +138,9 @@ class AsyncRobot:
 
             raise InputError("AsyncRobot: give robot=Robot(...) or the Robot's arguments, not both")
         self._args, self._kwargs = args, kwargs
-        self.robot: Any = robot  #: the wrapped :class:`~robogest.live.Robot` (made by :meth:`open` if not given)
+        self.robot: Robot | None = (
+            robot  #: the wrapped :class:`~robogest.live.Robot` (made by :meth:`open` if not given)
+        )
 
     # --- life cycle ----------------------------------------------------------------------------------
     async def open(self) -> AsyncRobot:
@@ -137,6 +151,15 @@ class AsyncRobot:
             self.robot = await asyncio.to_thread(Robot, *self._args, **self._kwargs)
         await asyncio.to_thread(self.robot.open)
         return self
+
+    @property
+    def session(self) -> Robot:
+        """The wrapped :class:`~robogest.live.Robot`; InputError before :meth:`open` made it."""
+        if self.robot is None:
+            from robogest.errors import InputError
+
+            raise InputError("robot session is not open (never opened); use `async with AsyncRobot(...) as robot:`")
+        return self.robot
 
     async def close(self) -> str | None:
         """Stop, glide to rest, torque off (in a thread); returns why rest was not reached, or None."""
@@ -163,9 +186,10 @@ class AsyncRobot:
     async def wait_ready(self, timeout_s: float | None = None) -> bool:
         """Until the session is ready (True) or ``timeout_s`` (False)."""
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
-        self.robot._check_open()
-        while not self.robot.ready:
-            self.robot._check_open()
+        robot = self.session
+        robot.check_open()
+        while not robot.ready:
+            robot.check_open()
             if deadline is not None and time.monotonic() >= deadline:
                 return False
             await asyncio.sleep(POLL_S)
@@ -175,7 +199,7 @@ class AsyncRobot:
     async def say(self, text: str | None = None, *, wait: bool = True, **kwargs: Any) -> AsyncUtterance:
         """:meth:`Robot.say <robogest.live.Robot.say>` (same arguments): queued at once; awaited until done when
         ``wait``. A bad argument raises here; a failure while preparing is raised when the utterance is awaited."""
-        h = AsyncUtterance(self.robot.say(text, wait=False, **kwargs))
+        h = AsyncUtterance(self.session.say(text, wait=False, **kwargs))
         if wait:
             await h
         return h
@@ -186,10 +210,10 @@ class AsyncRobot:
 
     async def interrupt(self, wait: bool = True) -> dict:
         """Stop speaking and glide to rest; with ``wait``, returns once at rest (see :meth:`Robot.interrupt`)."""
-        return await asyncio.to_thread(self.robot.interrupt, wait)
+        return await asyncio.to_thread(self.session.interrupt, wait)
 
     def status(self) -> dict:
-        return self.robot.status()
+        return self.session.status()
 
 
 __all__ = ["AsyncRobot", "AsyncStream", "AsyncUtterance"]

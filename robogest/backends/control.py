@@ -21,217 +21,37 @@ Two ways to run it, sharing every line of the tick:
   advanced by one period per tick, so runs are deterministic.
 
 :meth:`ControlLoop.close` (idempotent) glides to rest, then calls ``backend.shutdown()`` (torque off,
-disconnect). :func:`go_to_rest` is the same glide for a backend without a running loop (what every backend's
-``shutdown`` uses). :func:`signals_end_at_rest` turns SIGINT, SIGTERM, SIGHUP and SIGQUIT into :class:`Interrupted`
-so the same path runs, and keeps a second signal from cutting the glide short.
+disconnect); :func:`go_to_rest` is the same glide without a running loop, :func:`signals_end_at_rest` the signals
+that run it (both re-exported from :mod:`robogest.backends.rest` and :mod:`robogest.backends.signals`).
 """
 
 from __future__ import annotations
 
-import contextlib
-import signal
 import threading
 import time
-from collections import deque
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Callable
 
 import numpy as np
 
 from robogest.backends.base import Backend, check_goal
+from robogest.backends.play_handle import Event, LoopStats, PlayHandle  # (Event, LoopStats: re-exported)
+from robogest.backends.rest import DEFAULT_RATE_HZ, go_to_rest, start_pose  # (go_to_rest: re-exported)
+from robogest.backends.signals import (
+    HANDLED_SIGNALS,
+    Interrupted,
+    deferred_signals,
+    deliver_signal,
+    signals_end_at_rest,
+)
 from robogest.errors import BackendError, RobogestError
 from robogest.robot.config import LIMIT_MARGIN_RAD
 from robogest.safety.online import LOOKAHEAD_S, OnlineLimiter
 from robogest.trajectory.types import Trajectory, check_matches
 
-#: Default control rate, Hz.
-DEFAULT_RATE_HZ = 100.0
 #: A play is done when the goal sits within this of the trajectory's last pose, still (radians).
 _DONE_TOL_RAD = 1e-4
 #: Longest glide to rest before giving up and saying so, loop seconds.
 REST_TIMEOUT_S = 10.0
-
-
-# --- signals -----------------------------------------------------------------------------------------
-class Interrupted(KeyboardInterrupt):
-    """SIGINT, SIGTERM, SIGHUP or SIGQUIT arrived: the robot is taken to rest and torque turned off on the way out.
-
-    A :class:`KeyboardInterrupt` (so ``except Exception`` never swallows it); ``exit_code`` is ``128 + signum``;
-    ``outcome`` is filled in once the shutdown has run (at rest with torque off, or why not).
-    """
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signum)
-        self.signum = int(signum)
-        self.signal_name = signal.Signals(signum).name
-        self.exit_code = 128 + self.signum
-        self.outcome = ""
-
-    def __str__(self) -> str:
-        return f"interrupted by {self.signal_name}" + (f"; {self.outcome}" if self.outcome else "")
-
-
-class _SignalState:
-    def __init__(self) -> None:
-        self.active = 0
-        self.fired: Interrupted | None = None
-        self.pending: int | None = None
-        self.critical = 0
-        self.later: list[str] = []  #: signals that arrived after the first (they do not cut the glide short)
-
-
-_SIG = _SignalState()
-#: Signals that end motion at rest with torque off (exit 128 + signal), in the CLI, a live session and ``serve``;
-#: SIGQUIT (Ctrl-\) too: its default ends the process at once, torque left on.
-HANDLED_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
-
-
-def _on_signal(signum: int, frame: Any) -> None:
-    if _SIG.fired is not None or _SIG.pending is not None:
-        # Already on the way to rest, as fast as the limits allow; stopping now would drop the arms.
-        _SIG.later.append(signal.Signals(signum).name)
-        return
-    if _SIG.critical:  # inside a tick: raised at its end, so goal and limiter state never disagree
-        _SIG.pending = signum
-        return
-    _SIG.fired = Interrupted(signum)
-    raise _SIG.fired
-
-
-def deliver_signal(signum: int) -> None:
-    """Act on ``signum`` now, in this thread, as :func:`signals_end_at_rest` would on its arrival (raise
-    :class:`Interrupted` once, ignore later ones): for an event loop that catches signals itself so that none is
-    raised inside one of its tasks."""
-    _on_signal(signum, None)
-
-
-def _raise_pending() -> None:
-    if _SIG.pending is not None and _SIG.fired is None and not _SIG.critical:
-        _SIG.fired = Interrupted(_SIG.pending)
-        raise _SIG.fired
-
-
-@contextlib.contextmanager
-def signals_end_at_rest() -> Iterator[None]:
-    """Within the block, SIGINT, SIGTERM, SIGHUP and SIGQUIT raise :class:`Interrupted` once (main thread only).
-
-    Later signals are recorded and ignored: the glide to rest already goes as fast as the limits allow, and torque
-    off mid-pose would let the arms drop. A SIGHUP that was ignored when the block began (``nohup``) stays ignored.
-    Outside the main thread this is a no-op (signals are delivered to the main thread only).
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    old: dict[int, Any] = {}
-    if _SIG.active == 0:
-        _SIG.fired, _SIG.pending, _SIG.later = None, None, []
-        for name in HANDLED_SIGNALS:
-            sig = getattr(signal, name, None)
-            if sig is None:
-                continue
-            prev = signal.getsignal(sig)
-            if name == "SIGHUP" and prev == signal.SIG_IGN:
-                continue
-            old[sig] = prev
-            signal.signal(sig, _on_signal)
-    _SIG.active += 1
-    try:
-        yield
-    finally:
-        _SIG.active -= 1
-        for sig, prev in old.items():
-            signal.signal(sig, prev)
-
-
-@contextlib.contextmanager
-def deferred_signals() -> Iterator[None]:
-    """A block that is atomic with respect to signals (main thread): one that arrives inside is raised at its end
-    (a tick, so goal and limiter state never disagree; a shutdown, so the glide and torque off run to the end).
-    Blocks nest; the outermost raises."""
-    main = threading.current_thread() is threading.main_thread()
-    if main:
-        _SIG.critical += 1
-    try:
-        yield
-    finally:
-        if main:
-            _SIG.critical -= 1
-    if main:
-        _raise_pending()
-
-
-# --- handles -----------------------------------------------------------------------------------------
-@dataclass
-class Event:
-    """Something that happened in the loop: ``time.monotonic()`` and loop-clock stamps, seconds."""
-
-    name: str
-    monotonic_s: float
-    loop_s: float
-
-
-class PlayHandle:
-    """A motion given to the loop (a trajectory, or the glide to rest after :meth:`ControlLoop.interrupt`).
-
-    Events (:attr:`events`, by name): ``started`` (trajectory time 0 reached; after the glide to its first pose),
-    ``first_goal`` (first goal sent that departs from the pose held before), ``done`` (the trajectory ended and
-    the goal settled on its last pose; for a rest handle: at rest), ``interrupted`` (replaced or interrupted).
-    """
-
-    def __init__(
-        self, loop: ControlLoop, trajectory: Trajectory | None, start_at: float | None, approach_within_rad: float = 0.0
-    ) -> None:
-        self._loop = loop
-        self.trajectory = trajectory
-        self.start_at = start_at
-        self.approach_within_rad = approach_within_rad
-        self.events: dict[str, Event] = {}
-        self._finished = threading.Event()
-        self.error: BaseException | None = None
-        self.on_start: Callable[[], None] | None = None
-        self.progress: Callable[[float, float], None] | None = None
-        # playback state, owned by the loop
-        self.phase = "wait"  # wait -> approach -> run -> finish -> done | interrupted
-        self.t_run0 = 0.0
-        self.held: np.ndarray | None = None
-
-    @property
-    def done(self) -> bool:
-        """True once the motion ended, by completion, interruption or a loop failure."""
-        return self._finished.is_set()
-
-    @property
-    def completed(self) -> bool:
-        return "done" in self.events
-
-    def wait(self, timeout_s: float | None = None) -> bool:
-        """Block until :attr:`done` (stepped loops tick here); re-raise a loop failure. Returns :attr:`done`."""
-        self._loop._wait(self, timeout_s)
-        if self.error is not None:
-            raise self.error
-        return self.done
-
-    def _mark(self, name: str, loop_s: float) -> None:
-        if name not in self.events:
-            self.events[name] = Event(name, time.monotonic(), loop_s)
-        if name in ("done", "interrupted"):
-            self._finished.set()
-
-    def _fail(self, e: BaseException) -> None:
-        self.error = e
-        self._finished.set()
-
-
-@dataclass
-class LoopStats:
-    """Timing of the ticks: wall-clock start of each (``time.monotonic()``, seconds; the last hour's at 100 Hz, so
-    a session that runs for days does not grow by 11 MB an hour), late and skipped counts."""
-
-    n_ticks: int = 0
-    starts: deque[float] = field(default_factory=lambda: deque(maxlen=360_000))
-    late_ticks: int = 0
-    skipped_slots: int = 0
 
 
 # --- the loop ----------------------------------------------------------------------------------------
@@ -246,8 +66,9 @@ class ControlLoop:
         Ticks per wall-clock second; default 100 Hz.
     on_tick : callable (loop_s, goal_rad), optional
         Called after every tick with the loop time (s) and the goal ``(J,)`` sent (rad); keep it short.
-    threaded : bool, optional
-        Tick in a background thread; default ``backend.realtime``.
+    threaded, wall_clock : bool, optional
+        Tick in a background thread; ticks due on the wall clock (a simulated backend is then advanced one period
+        per tick, paced like hardware: a live session). Both default to ``backend.realtime``.
     read_back : bool
         Read present positions every tick (a lost servo or hardware error is caught within a tick).
     time_scale : float
@@ -271,6 +92,7 @@ class ControlLoop:
         *,
         on_tick: Callable[[float, np.ndarray], None] | None = None,
         threaded: bool | None = None,
+        wall_clock: bool | None = None,
         read_back: bool = True,
         time_scale: float = 1.0,
         margin_rad: float = LIMIT_MARGIN_RAD,
@@ -300,12 +122,18 @@ class ControlLoop:
         self._play: PlayHandle | None = None
         self._rest: PlayHandle | None = None
         self._idle: Callable[[float], np.ndarray] | None = None
-        self._hold: np.ndarray | None = None
+        self._hold: np.ndarray = self.rest_q_rad  # the pose held when nothing plays (set when the loop starts)
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
-        self._error: BaseException | None = None
+        self.error: BaseException | None = None  #: why the loop failed (it went to rest, torque off), or None
         self._started = False
-        self._closed = False
+        self.closed = False  #: :meth:`close` ran (also after a failure: the loop closes itself)
+        self.wall_clock = backend.realtime if wall_clock is None else bool(wall_clock)
+
+    @property
+    def resting(self) -> PlayHandle | None:
+        """The glide to rest of the last :meth:`interrupt` (``done`` at rest) until a play or idle motion follows."""
+        return self._rest
 
     # --- clock -------------------------------------------------------------------------------------
     @property
@@ -316,23 +144,26 @@ class ControlLoop:
     def loop_s_at(self, monotonic_s: float) -> float:
         """Loop time of a ``time.monotonic()`` instant (realtime loops: ticks are due at their loop time after
         start), for ``play(start_at=loop.loop_s_at(t_mono))``."""
-        if not self.backend.realtime:
+        if not self.wall_clock:
             raise RuntimeError("a stepped (simulated) loop has no wall-clock time; give start_at in loop time")
         return monotonic_s - self._wall0
 
     @property
     def goal_rad(self) -> np.ndarray:
         """Last goal sent ``(J,)``, radians."""
+        return np.array(self._lim().q_rad, dtype=float)
+
+    def _lim(self) -> OnlineLimiter:
         if self.limiter is None:
             raise RuntimeError("control loop not started")
-        return self.limiter.q_rad.copy()
+        return self.limiter
 
     # --- life cycle --------------------------------------------------------------------------------
     def start(self) -> ControlLoop:
         """Connect (if needed), hold the present pose, torque on, start ticking (threaded mode)."""
         if self._started:
             return self
-        if self.backend.realtime:  # hardware: refuse a robot file whose limits the servos or the body cannot keep
+        if self.wall_clock:  # hardware (or its stand-in): refuse a robot file whose limits the servos cannot keep
             from robogest.backends.servos.check import require_hardware_safe
 
             require_hardware_safe(self.robot)
@@ -341,7 +172,7 @@ class ControlLoop:
             set_rate(self.rate_hz)
         if not getattr(self.backend, "is_connected", False):
             self.backend.connect()
-        q_now = _start_pose(self.backend.read_positions(), self.robot, self.period_s)
+        q_now = start_pose(self.backend.read_positions(), self.robot, self.period_s)
         self.backend.write_goal(q_now, source="present pose at start")  # hold, so enabling torque does not jump
         self.backend.confirm_goal()  # a sync write is not acknowledged: a servo that missed it would jump
         self.backend.set_torque(True)
@@ -414,9 +245,9 @@ class ControlLoop:
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join()  # a failing thread closes the loop itself: wait for its glide too
-        if self._closed:
+        if self.closed:
             return self.rest_problem
-        self._closed = True
+        self.closed = True
         with self._lock:
             self._cancel(self._play)
             self._play = None
@@ -441,8 +272,8 @@ class ControlLoop:
 
     def __exit__(self, et: type[BaseException] | None, *exc: object) -> None:
         problem = self.close()
-        if et is None and self._error is not None:
-            raise self._error  # the loop failed (and went to rest) while the block went on: say so
+        if et is None and self.error is not None:
+            raise self.error  # the loop failed (and went to rest) while the block went on: say so
         if et is None and problem:
             raise BackendError(f"{self.robot.name}: {problem}; torque off attempted")
 
@@ -477,9 +308,9 @@ class ControlLoop:
                 self.step()
 
     def _check_alive(self) -> None:
-        if self._error is not None:
-            raise self._error
-        if self._closed:
+        if self.error is not None:
+            raise self.error
+        if self.closed:
             raise RuntimeError("control loop closed")
         if not self._started:
             raise RuntimeError("control loop not started; call start() first")
@@ -489,7 +320,7 @@ class ControlLoop:
             while not self._stop.is_set():
                 self._tick_paced()
         except BaseException as e:
-            self._error = e
+            self.error = e
             with self._lock:
                 for h in (self._play, self._rest):
                     if h is not None:
@@ -498,7 +329,7 @@ class ControlLoop:
 
     def _tick_paced(self) -> None:
         """Wait for this tick's slot (realtime) or advance the simulation (stepped), then tick."""
-        if self.backend.realtime:
+        if self.wall_clock:
             wall_period = self.period_s
             due = self._wall0 + self._k * wall_period
             now = time.monotonic()
@@ -532,11 +363,11 @@ class ControlLoop:
             tr = h.trajectory
             if h.phase == "wait" and (h.start_at is None or t >= h.start_at - 1e-9):
                 h.phase = "approach"
-                h.held = self.limiter.q_rad.copy()
+                h.held = self._lim().q_rad.copy()
             if h.phase == "approach":
-                first = self.limiter.clamp_target(tr.sample(0.0))
-                gap = np.max(np.abs(self.limiter.q_rad - first))
-                if (gap <= _DONE_TOL_RAD and self.limiter.still) or gap <= h.approach_within_rad:
+                first = self._lim().clamp_target(tr.sample(0.0))
+                gap = np.max(np.abs(self._lim().q_rad - first))
+                if (gap <= _DONE_TOL_RAD and self._lim().still) or gap <= h.approach_within_rad:
                     h.phase = "run"
                     h.t_run0 = t
                     h._mark("started", t)
@@ -567,7 +398,7 @@ class ControlLoop:
         return "control loop, idle motion" if self._idle is not None else "control loop, holding"
 
     def _tick(self) -> None:
-        lim = self.limiter
+        lim = self._lim()
         t = self.now_s
         with self._lock:
             target, target_v, h = self._target(t)
@@ -582,7 +413,7 @@ class ControlLoop:
             self.backend.write_goal(q, source=self._source_name(h))
             lim.commit()
             departs = h is not None and h.held is not None and np.max(np.abs(q - h.held)) > 1e-9
-            if departs and "first_goal" not in h.events:
+            if departs and h is not None and "first_goal" not in h.events:
                 h._mark("first_goal", t)
             if h is not None and (h.phase == "finish" or h is self._rest) and lim.settled(_DONE_TOL_RAD):
                 h.phase = "done"
@@ -617,22 +448,28 @@ class ControlLoop:
             return f"could not reach rest ({e})"
         if not rest.done:
             return f"did not reach rest within {timeout_s:.3g} s"
-        if np.any(self.limiter.q_rad != self.rest_q_rad):  # settled within rounding (a glide that took over a motion)
+        if np.any(self._lim().q_rad != self.rest_q_rad):  # settled within rounding (a glide that took over a motion)
             try:
                 self.backend.write_goal(self.rest_q_rad, source="control loop, glide to rest")
             except RobogestError as e:
                 return f"could not reach rest ({e})"
-            self.limiter.reset(self.rest_q_rad)
+            self._lim().reset(self.rest_q_rad)
             if not self.backend.realtime:
                 self.backend.advance(self.period_s)  # one more tick of simulated time
         self._settle()
         return None
 
+    def glide_from(self, q0: np.ndarray, v0: np.ndarray | None = None, a0: np.ndarray | None = None) -> str | None:
+        """Not started: take over a motion at ``q0 (J,)`` rad (``v0``, ``a0``: or still), glide to rest here."""
+        self._adopt(q0, v0, a0)
+        self._started = True
+        return self._glide_to_rest()
+
     def _rest_timeout_s(self) -> float:
         """How long the glide to rest may take before it is given up: :data:`REST_TIMEOUT_S`, or longer for slow
         limits (1.5 times the time-optimal bound, plus 2 s): a timeout turns torque off away from rest."""
         try:
-            bound = self.limiter.time_to_reach_s(self.rest_q_rad)
+            bound = self._lim().time_to_reach_s(self.rest_q_rad)
         except RobogestError:
             return REST_TIMEOUT_S
         return max(REST_TIMEOUT_S, 1.5 * bound + 2.0)
@@ -648,51 +485,9 @@ class ControlLoop:
                 self.backend.advance(self.period_s)
 
 
-def _start_pose(q_read_rad: np.ndarray, robot, period_s: float) -> np.ndarray:
-    """The goal that holds the present pose ``(J,)`` at start: the reading, clipped into the limits, with each held
-    joint moved half a tick's allowed step towards its angle (onto it when that close). The goal guard reads the
-    pose again for its reference, and a held joint's goal must not be farther from its angle than that reference:
-    half a step covers the reading's noise (a tick or two) where the reading itself could be refused."""
-    q = np.clip(np.asarray(q_read_rad, dtype=float), robot.q_min_rad, robot.q_max_rad)
-    rest, step = robot.rest_q_rad, 0.5 * robot.v_max_rad_s * period_s
-    return np.where(robot.held_mask, q + np.clip(rest - q, -step, step), q)
-
-
-def go_to_rest(backend: Backend, rate_hz: float | None = None) -> str | None:
-    """Glide ``backend`` from its last goal (or present pose) to rest within every limit; the one go-to-rest.
-
-    For a backend without a running :class:`ControlLoop` (every backend's ``shutdown`` calls it; after a loop's
-    own glide it finds the robot at rest and returns at once). It starts from the last goal, moving and
-    accelerating as the goal stream did if that goal was sent within the last two control periods (a simulated
-    backend: always), so the goals brake within the acceleration limit instead of stopping dead; else still.
-    ``rate_hz`` defaults to the backend's control rate (so per-tick steps stay what its guard expects). Torque
-    is left as it is.
-    Returns None at rest, else why not.
-    """
-    loop = ControlLoop(backend, rate_hz or getattr(backend, "control_rate_hz", DEFAULT_RATE_HZ), threaded=False)
-    last = getattr(backend, "last_goal_rad", None)
-    v0 = getattr(backend, "last_goal_v_rad_s", None)
-    a0 = getattr(backend, "last_goal_a_rad_s2", None)
-    recent = time.monotonic() - getattr(backend, "last_goal_monotonic_s", -np.inf) <= 2 * backend.control_period_s
-    try:
-        q0 = (
-            np.asarray(last, dtype=float)
-            if last is not None
-            else _start_pose(backend.read_positions(), backend.robot, backend.control_period_s)
-        )
-    except RobogestError as e:
-        return f"could not reach rest ({e})"
-    moving = last is not None and v0 is not None and (recent or not backend.realtime)
-    if moving and a0 is not None:  # a backward difference is the velocity half a period back
-        v0 = v0 + 0.5 * a0 * backend.control_period_s
-    loop._adopt(np.clip(q0, backend.robot.q_min_rad, backend.robot.q_max_rad), v0 if moving else None,
-                a0 if moving else None)  # fmt: skip
-    loop._started = True
-    return loop._glide_to_rest()
-
-
 __all__ = [
     "DEFAULT_RATE_HZ",
+    "HANDLED_SIGNALS",
     "ControlLoop",
     "Event",
     "Interrupted",

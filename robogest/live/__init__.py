@@ -3,7 +3,10 @@
 Stage-wise this package sits on top of everything: it drives speech -> generator -> IK -> control loop.
 """
 
+from robogest.live.config import SessionConfig
 from robogest.live.idle import IdleConfig, IdleMotion
-from robogest.live.session import EVENT_TYPES, Robot, StreamUtterance, UtteranceHandle
+from robogest.live.session import Robot
+from robogest.live.stream import StreamUtterance
+from robogest.live.utterance import EVENT_TYPES, UtteranceHandle
 
-__all__ = ["EVENT_TYPES", "IdleConfig", "IdleMotion", "Robot", "StreamUtterance", "UtteranceHandle"]
+__all__ = ["EVENT_TYPES", "IdleConfig", "IdleMotion", "Robot", "SessionConfig", "StreamUtterance", "UtteranceHandle"]

@@ -8,322 +8,100 @@ call raises it), or on SIGINT/SIGTERM/SIGHUP/SIGQUIT, always after the glide to 
 
 Utterances:
 
-* :meth:`Robot.say` - text (eSpeak NG) or an audio file: the batch pipeline (speech -> ``rhythm`` or a
-  learned generator -> IK -> safety layer) makes a trajectory, the loop plays it;
-* :meth:`Robot.stream` - PCM chunks from a voice agent: :class:`~robogest.speech.stream.SpeechStream` +
-  :class:`~robogest.live.planner.StreamingPlanner` extend a trajectory while it plays, L seconds behind the
-  newest audio; the speech audio is delayed by the same L.
+* :meth:`Robot.say` - text (eSpeak NG) or an audio file: the batch pipeline (speech -> generator -> IK -> safety
+  layer; :mod:`robogest.live.prepare`, in a child process by default) makes a trajectory, the loop plays it;
+* :meth:`Robot.stream` - PCM chunks from a voice agent (:mod:`robogest.live.stream`), planned while they play.
 
-Every utterance returns an :class:`UtteranceHandle` whose :attr:`~UtteranceHandle.events` are dicts with
-``type`` and ``t_monotonic_s`` (``time.monotonic()``).
+Every utterance returns an :class:`~robogest.live.utterance.UtteranceHandle`. Options: :class:`SessionConfig`. What
+plays, the says being prepared and the audio are changed only in the session's owner thread (:mod:`.owner`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import itertools
-import math
-import queue
+import dataclasses
 import sys
 import threading
 import time
 import weakref
-from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from robogest.backends.base import Backend
+from robogest.media.audio import AudioOut, open_output
 from robogest.errors import InputError
 from robogest.live import claims
+from robogest.live.config import SessionConfig
 from robogest.live.idle import IdleConfig, IdleMotion
-from robogest.live.style import BodyLanguage, body_language
+from robogest.live.idle_control import IdlePlayer
+from robogest.live.owner import Owner
+from robogest.live.planning import Planning
+from robogest.live.prepare import SayRequest
+from robogest.live.stream import StreamUtterance
+from robogest.live.style import body_language
+from robogest.live.utterance import EVENT_TYPES, UtteranceHandle
 from robogest.live.worker import Worker
-from robogest.media.audio import AudioOut, open_output
+
+if TYPE_CHECKING:
+    from robogest.backends.control import ControlLoop, PlayHandle
+    from robogest.trajectory import Trajectory
 from robogest.robot.registry import DEFAULT_ROBOT
-
-#: Event types an utterance can report, in the order they usually happen.
-EVENT_TYPES = ("requested", "first_chunk", "first_goal", "started", "audio_start", "done", "interrupted", "error")
-_ids = itertools.count(1)
-
-
-class _PacedSim(Backend):
-    """The MuJoCo backend advanced one control period per goal and paced on the wall clock like hardware.
-
-    A live session must keep time with speech; the control loop paces realtime backends and steps simulated
-    ones flat out, so the simulator is presented as a realtime backend that advances itself on every goal.
-    """
-
-    realtime = True
-
-    def __init__(self, inner: Backend) -> None:
-        super().__init__(inner.robot)
-        self.inner = inner
-
-    @property
-    def is_connected(self) -> bool:
-        return bool(getattr(self.inner, "is_connected", False))
-
-    @property
-    def last_goal_rad(self) -> np.ndarray | None:  # type: ignore[override]
-        return getattr(getattr(self, "inner", None), "last_goal_rad", None)
-
-    @last_goal_rad.setter
-    def last_goal_rad(self, value: np.ndarray | None) -> None:  # the inner backend keeps the real one
-        pass
-
-    def set_control_rate(self, rate_hz: float) -> None:
-        super().set_control_rate(rate_hz)
-        self.inner.set_control_rate(rate_hz)
-
-    def connect(self) -> None:
-        self.inner.connect()
-
-    def read_positions(self) -> np.ndarray:
-        return self.inner.read_positions()
-
-    def set_torque(self, on: bool) -> None:
-        self.inner.set_torque(on)
-
-    def write_goal(self, q_rad: np.ndarray, *, source: str = "") -> None:
-        self.inner.write_goal(q_rad, source=source)  # the inner backend's goal guard checks it
-        self.inner.advance(1.0 / self.control_rate_hz)
-
-    def _send_goal(self, q_rad: np.ndarray) -> None:  # write_goal delegates whole; never called
-        self.inner.write_goal(q_rad)
-
-    def disconnect(self) -> None:
-        self.inner.disconnect()
-
-    def shutdown(self) -> None:
-        self.inner.shutdown()
-
-
-class UtteranceHandle:
-    """One utterance given to a :class:`Robot`: its events, and a way to wait for it.
-
-    ``events``: dicts with ``type`` (see :data:`EVENT_TYPES`; also ``audio_chunk`` when the session cannot
-    play audio itself: ``offset_s`` into the utterance and the ``t_monotonic_s`` it should start playing) and
-    ``t_monotonic_s``; ``first_goal`` is the first goal sent that departs from the pose held before.
-    """
-
-    def __init__(self, kind: str) -> None:
-        self.id = next(_ids)
-        self.kind = kind
-        self._own: list[dict] = []
-        self._lock = threading.Lock()
-        self._attached = threading.Event()
-        self._play: Any = None
-        self._abandoned = False
-        self._error: BaseException | None = None
-        self.trajectory: Any = None  #: the Trajectory played (or the growing feed of a stream)
-
-    def _add(self, type_: str, t: float | None = None, **extra: Any) -> None:
-        with self._lock:
-            self._own.append({"type": type_, "t_monotonic_s": time.monotonic() if t is None else t, **extra})
-
-    def _attach(self, play: Any) -> None:
-        self._play = play
-        self._attached.set()
-
-    def _abandon(self, why: str) -> None:
-        """Nothing will be played (e.g. interrupted before the first motion was planned; the caller resumes idle)."""
-        with self._lock:
-            if self._abandoned:  # once (an interrupt finishes a say being prepared, whose worker then gives up too)
-                return
-        self._abandoned = True
-        self._add("interrupted", reason=why)
-        self._attached.set()
-
-    def _fail(self, e: BaseException) -> None:
-        """Its preparation failed: an ``error`` event (``message``), :meth:`wait` raises ``e``; nothing plays."""
-        self._error = e
-        self._abandoned = True
-        self._add("error", message=str(e) or type(e).__name__)
-        self._attached.set()
-
-    @property
-    def error(self) -> BaseException | None:
-        """Why the utterance could not be prepared (bad input, unknown gesture tag...), or None."""
-        return self._error
-
-    @property
-    def events(self) -> list[dict]:
-        """All events so far, ordered by time."""
-        with self._lock:
-            out = list(self._own)
-        if self._play is not None:
-            for name, ev in list(self._play.events.items()):
-                out.append({"type": name, "t_monotonic_s": ev.monotonic_s})
-        return sorted(out, key=lambda e: e["t_monotonic_s"])
-
-    def event(self, type_: str) -> dict | None:
-        """The first event of ``type_``, or None."""
-        return next((e for e in self.events if e["type"] == type_), None)
-
-    @property
-    def done(self) -> bool:
-        """Finished: played to the end, interrupted, or failed."""
-        return self._abandoned or (self._play is not None and self._play.done)
-
-    @property
-    def interrupted(self) -> bool:
-        return self.event("interrupted") is not None
-
-    def wait_started(self, timeout_s: float | None = None) -> bool:
-        """Block until the utterance is prepared and handed to the robot, or abandoned (False on ``timeout_s``);
-        raises its preparation's failure."""
-        deadline = None if timeout_s is None else time.monotonic() + timeout_s
-        step = 0.05  # short waits: signals reach the main thread between them
-        while not self._attached.wait(step if deadline is None else max(0.0, min(step, deadline - time.monotonic()))):
-            if deadline is not None and time.monotonic() >= deadline:
-                return False
-        if self._error is not None:
-            raise self._error
-        return True
-
-    @property
-    def prepared(self) -> bool:
-        """Handed to the robot, abandoned or failed: :meth:`wait_started` would return at once."""
-        return self._attached.is_set()
-
-    def wait(self, timeout_s: float | None = None) -> bool:
-        """Block until :attr:`done` (or ``timeout_s``); raises a failure of its preparation or of the backend.
-        Returns :attr:`done`."""
-        deadline = None if timeout_s is None else time.monotonic() + timeout_s
-        if not self.wait_started(timeout_s):
-            return False
-        if self._play is None:
-            return True
-        left = None if deadline is None else max(0.0, deadline - time.monotonic())
-        return bool(self._play.wait(left))
 
 
 class Robot:
     """A robot that stays connected: say things, stream speech, interrupt, idle in between.
 
-    Parameters
-    ----------
-    name : str
-        Robot name (``robogest robots list``) or YAML path.
-    backend : str
-        ``sim`` (MuJoCo, paced in real time), ``dynamixel`` or ``feetech``.
-    port : str, optional
-        Serial port of a servo backend (default: the robot YAML's ``bus.port``).
-    idle : bool
-        Breathing and weight shift between utterances (:mod:`robogest.live.idle`); False holds rest.
-    idle_config : IdleConfig, optional
-        Rate and amplitude of the idle motion.
-    generator : str
-        Gesture generator for :meth:`say` (learned ones need ``checkpoint`` in ``generator_options``).
-        Streaming always uses ``rhythm``: learned generators are batch-only.
-    seed : int
-        Seed of the gesture choices.
-    lookahead_s : float
-        L of streamed speech, seconds (motion and audio are played this far behind the newest chunk).
-    rate_hz : float
-        Control-loop rate, Hz.
-    time_scale : float
-        Loop seconds per wall second (tests run faster than real time with > 1; audio is then not played).
-    audio : bool
-        Play speech through ``sounddevice`` when it and an output device exist.
-    voice, words_per_minute : str, int
-        eSpeak NG voice and rate for text.
-    baudrate : int, optional
-        Baud rate of a servo backend.
-    on_tick : callable (loop_s, goal_rad), optional
-        Called after every control tick with the goal ``(J,)`` radians sent (keep it short).
-    backend_options : dict, optional
-        More keyword options of the backend (e.g. ``lost_after_s`` of a servo backend).
-    warm_up : bool
-        Run the speech (eSpeak NG, the front-end) and planning code of a say and of a stream once in the
-        background after opening, so the first utterance after :attr:`ready` is nearly as fast as later ones
-        (measured on the quiet 2-core machine: 424 ms to the first goal against 260 ms, docs/live.md).
-    blas_threads : int or None
-        While the session is open, BLAS thread pools of the whole process are limited to this many threads (the
-        planner's matrices are small; more threads only take cores from the control loop: 2.5x faster streaming
-        measured on 2 cores). Restored on close; None leaves them alone.
-    stop_within_s : float or None
-        The robot is always within this many seconds of standing at rest (every limit kept), so :meth:`interrupt`
-        is at rest within it: the control loop's limiter cuts short any gesture that would take it farther (on
-        humanoid_xl430, 0.45 s allows about 0.65 rad from rest at the shoulders). None: gestures as large as the
-        joint limits allow, and an interrupt takes as long as the limits make it.
-    approach_within_rad : float
-        An utterance starting this close (every joint, radians) to the pose held starts at once, the limiter
-        taking up the difference; farther away, the robot first glides to its first pose.
+    ``Robot(name, backend, port, **options)`` or ``Robot(name, config=SessionConfig(...))`` (keywords given too
+    override its fields); the options are the fields of :class:`~robogest.live.config.SessionConfig`, checked
+    when the session is made (an InputError names the bad one).
+
+    ``name``: a robot name (``robogest robots list``) or YAML path.
     """
 
     def __init__(
         self,
         name: str = DEFAULT_ROBOT,
-        backend: str = "sim",
+        backend: str | None = None,
         port: str | None = None,
         *,
-        idle: bool = True,
-        idle_config: IdleConfig | None = None,
-        generator: str = "rhythm",
-        generator_options: dict | None = None,
-        seed: int = 0,
-        lookahead_s: float | None = None,
-        rate_hz: float = 100.0,
-        time_scale: float = 1.0,
-        audio: bool = True,
-        voice: str = "en-us",
-        words_per_minute: int = 160,
-        baudrate: int | None = None,
-        on_tick: Callable[[float, np.ndarray], None] | None = None,
-        backend_options: dict | None = None,
-        warm_up: bool = True,
-        blas_threads: int | None = 1,
-        stop_within_s: float | None = 0.45,
-        approach_within_rad: float = 0.2,
+        config: SessionConfig | None = None,
+        **options: Any,
     ) -> None:
         from robogest.robot.registry import find_robot
         from robogest.speech.stream import DEFAULT_LOOKAHEAD_S
         from robogest.tools.validate import require_followable
 
-        self.config = find_robot(name)
+        if backend is not None:
+            options["backend"] = backend
+        if port is not None:
+            options["port"] = port
+        base = {} if config is None else {f.name: getattr(config, f.name) for f in dataclasses.fields(config)}
+        cfg = SessionConfig.from_options(**{**base, **options})  # the keywords override ``config``'s
+        self.options = cfg  #: the session's options
+        self.config = find_robot(name)  #: the robot
         require_followable(self.config)  # a robot that cannot follow gestures would only stand there
-        self.backend_name = backend
-        self.port = port
-        self.baudrate = baudrate
-        self.idle_enabled = bool(idle)
-        self.idle_config = idle_config or IdleConfig()
-        self.generator_name = generator
-        self.generator_options = dict(generator_options or {})
-        self.seed = seed
-        self.lookahead_s = DEFAULT_LOOKAHEAD_S if lookahead_s is None else float(lookahead_s)
-        self.rate_hz = rate_hz
-        self.time_scale = float(time_scale)
-        self.want_audio = audio and self.time_scale == 1.0
-        self.voice = voice
-        self.words_per_minute = words_per_minute
-        self.on_tick = on_tick
-        self.backend_options = dict(backend_options or {})
-        self.warm_up = warm_up
-        self.blas_threads = blas_threads
-        self.stop_within_s = stop_within_s
-        self.approach_within_rad = float(approach_within_rad)
+        # the options read most (and by callers), as attributes; the rest are read from self.options
+        self.backend_name, self.seed, self.stop_within_s = cfg.backend, cfg.seed, cfg.stop_within_s
+        self.idle_enabled, self.idle_config = bool(cfg.idle), cfg.idle_config or IdleConfig()
+        self.lookahead_s = DEFAULT_LOOKAHEAD_S if cfg.lookahead_s is None else float(cfg.lookahead_s)
+        self.time_scale = float(cfg.time_scale)
+        self.want_audio = cfg.audio and self.time_scale == 1.0
+        self.approach_within_rad = float(cfg.approach_within_rad)
+        self.planning: Planning | None = None  #: IK, generators and the say preparer (made by open())
         self._blas: Any = None
-        self.loop: Any = None
-        self.idle: IdleMotion | None = None
+        self.loop: ControlLoop | None = None
+        self.idle: IdlePlayer | None = None  #: the idle motion, once tabulated (robogest.live.idle_control)
         self.audio_note = ""  #: why speech audio is not played ("" when it is)
-        self._sd: Any = None
+        self.audio_device: Any = None  #: the ``sounddevice`` module speech plays through (None: not played)
         self._exit = contextlib.ExitStack()
-        self._current: UtteranceHandle | None = None
-        self._audio: AudioOut | None = None
         self._opened = False
-        self._say_lock = threading.Lock()
-        #: One plan at a time: the planners of streams and the warm-up share one IK solver and its MuJoCo data,
-        #: which two threads at once corrupt (a segfault: no glide to rest, torque left on).
-        self._plan_lock = threading.Lock()
-        self._interrupts = 0  #: interrupt() calls so far: an utterance asked for before one is not started after
-        self._streams: weakref.WeakSet[StreamUtterance] = weakref.WeakSet()  # every stream not yet finished
         self._worker: Worker | None = None  #: gets the session ready, then prepares says (off the caller's thread)
         self._claim: tuple[str, str] | None = None  #: what this session holds (robogest.live.claims)
-        self._generators: dict[tuple, Any] = {}  #: rhythm generators of per-call body language, by options
-        self._preparing: set[UtteranceHandle] = set()  #: says asked for and not yet playing (under _say_lock)
+        # The utterance state, owned by one thread (robogest.live.owner): changed only by messages run there.
+        self._owner = Owner("robogest-session")
+        self._current: UtteranceHandle | None = None  #: the utterance playing last (read by status())
+        self._audio: AudioOut | None = None  #: the speech audio playing
+        self._preparing: set[UtteranceHandle] = set()  #: says asked for and not yet playing
+        self._streams: weakref.WeakSet[StreamUtterance] = weakref.WeakSet()  #: every stream not yet finished
 
     # --- life cycle --------------------------------------------------------------------------------
     def open(self) -> Robot:
@@ -332,14 +110,14 @@ class Robot:
         Raises InputError on a session that was closed: it silently did nothing, and every ``say`` then failed as
         "not open". Make a new :class:`Robot` to connect again.
         """
-        if self._opened and self.loop is not None and self.loop._closed:
+        if self._opened and self.loop is not None and self.loop.closed:
             raise InputError(
                 f"this {self.config.name} session was closed; a closed session is not opened again: make a new "
                 "Robot(...) to connect again"
             )
         if self._opened:
             return self
-        port = self.port or getattr(getattr(self.config, "bus", None), "port", None)
+        port = self.options.port or getattr(getattr(self.config, "bus", None), "port", None)
         key = claims.claim_key(self.backend_name, self.config.name, port)
         claims.claim(key, self)  # BackendError (one line) if this robot or port is in use here
         self._claim = key
@@ -354,38 +132,32 @@ class Robot:
     def _open(self) -> Robot:
         from robogest.backends import get_backend_factory
         from robogest.backends.control import ControlLoop
-        from robogest.generators import make_generator
         from robogest.retarget import DirectionIK
 
-        if self.blas_threads is not None:
+        if self.options.blas_threads is not None:
             from threadpoolctl import threadpool_limits
 
-            self._blas = threadpool_limits(limits=int(self.blas_threads), user_api="blas")
+            self._blas = threadpool_limits(limits=int(self.options.blas_threads), user_api="blas")
         factory = get_backend_factory(self.backend_name)
-        # A session runs for hours: the simulator keeps no log of its own.
-        opts = {"record": False} if self.backend_name == "sim" else {"port": self.port, "baudrate": self.baudrate}
-        opts.update(self.backend_options)
+        # A session runs for hours: the simulator keeps no log of its own, and keeps time with speech (the control
+        # loop ticks every backend on the wall clock: a simulator one period per tick, paced like hardware).
+        opts: dict[str, object] = {"record": False, "pace": True}
+        if self.backend_name != "sim":
+            opts = {"port": self.options.port, "baudrate": self.options.baudrate}
+        opts.update(self.options.backend_options)
         be = factory(self.config, **opts)
-        if not be.realtime:
-            be = _PacedSim(be)
-        self._ik = DirectionIK(self.config)
-        self._rhythm = make_generator("rhythm")
-        self._generator = (
-            self._rhythm
-            if self.generator_name == "rhythm" and not self.generator_options
-            else make_generator(self.generator_name, **self.generator_options)
-        )
+        self.planning = Planning(self.config, self.options, self.lookahead_s)
         self._idle_ik = DirectionIK(self.config) if self.idle_enabled else None  # its own: built in the background
         if self.want_audio:
-            self._sd, self.audio_note = open_output()
+            self.audio_device, self.audio_note = open_output()
             if self.audio_note:  # one line, once per session
                 print(f"robogest: speech audio is not played ({self.audio_note}); utterance events carry its "
                       "play times", file=sys.stderr)  # fmt: skip
         else:
             self.audio_note = "audio off" if self.time_scale == 1.0 else "time_scale is not 1"
         self.loop = ControlLoop(
-            be, self.rate_hz, threaded=True, time_scale=self.time_scale, on_tick=self.on_tick,
-            stop_within_s=self.stop_within_s,
+            be, self.options.rate_hz, threaded=True, wall_clock=True, time_scale=self.time_scale,
+            on_tick=self.options.on_tick, stop_within_s=self.stop_within_s,
         )  # fmt: skip
         self._opened = True
         try:
@@ -398,6 +170,7 @@ class Robot:
                 self._blas = None
             raise
         try:
+            self._owner.start()
             self._worker = Worker(self._background_start, name="robogest-warm-up")
             self._worker.start()
         except BaseException:  # e.g. a signal right here: the loop holds the robot with torque on
@@ -406,26 +179,22 @@ class Robot:
         return self
 
     def _background_start(self) -> None:
-        """After the loop holds the robot: tabulate the idle motion (IK of its cycles) and start it, then warm up.
-
-        Both run here so the session is ready (holding rest, taking utterances) as early as possible.
-        """
+        """After the loop holds the robot (so the session takes utterances at once): start the child process that
+        prepares says (it imports meanwhile), tabulate the idle motion (IK of its cycles) and start it, warm up."""
+        if self.planning is not None:
+            self.planning.start_preparer()
         if self._idle_ik is not None:
             idle = IdleMotion(self.config, self.idle_config, retargeter=self._idle_ik)
-            with self._say_lock:
-                loop = self.loop
-                if not loop._closed and loop._error is None and (loop._rest is None or loop._rest.done):
-                    self.idle = idle
-                    loop.set_idle(self._idle_target)
-                else:
-                    self.idle = idle  # an interrupt in progress turns it on when it reaches rest
-        if self.warm_up:
+            assert self.loop is not None  # (this runs once the loop holds the robot)
+            self.idle = IdlePlayer(self.loop, idle)
+            self._owner.call(self.idle.switch_on)
+        if self.options.warm_up:
             self._warm_up()
 
     def _holds_robot(self) -> bool:
         """Open and alive: its control loop runs (a session whose backend failed went to rest, torque off)."""
         loop = self.loop
-        return bool(self._opened and loop is not None and not loop._closed and loop._error is None)
+        return bool(self._opened and loop is not None and not loop.closed and loop.error is None)
 
     @property
     def ready(self) -> bool:
@@ -436,73 +205,46 @@ class Robot:
 
     def wait_ready(self, timeout_s: float | None = None) -> bool:
         """Block until :attr:`ready` (False after ``timeout_s``); raises if the session is not open or died."""
-        self._check_open()
+        self.check_open()
         w = self._worker
         assert w is not None
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         while not w.ready.wait(0.05):  # short waits: signals reach the main thread between them
             if deadline is not None and time.monotonic() >= deadline:
                 return False
-        self._check_open()
+        self.check_open()
         return True
 
     def _warm_up(self) -> None:
-        """Load and run the speech and planning code once (their first calls import a lot; the first eSpeak NG
-        call loads its voice), for a say and for a stream, so the first utterance starts as fast
-        as later ones. Runs in the worker while the robot idles; stops early when the session closes."""
-        from robogest.live.planner import StreamingPlanner
-        from robogest.pipeline import DEFAULT_TRAJECTORY_FPS, load_speech_input, motion_to_trajectory
-        from robogest.speech.stream import SpeechStream
-
-        stopping = self._worker.stopping if self._worker is not None else threading.Event()
-        with contextlib.suppress(Exception):
-            speech = load_speech_input(text="Hello there, nice to meet you.", voice=self.voice,
-                                       words_per_minute=self.words_per_minute)  # fmt: skip
-            if stopping.is_set():
-                return
-            motion = self._generator.generate(speech, seed=self.seed)
-            if stopping.is_set():
-                return
-            motion_to_trajectory(motion, self.config, silent_spans=speech.silent_spans, fps=DEFAULT_TRAJECTORY_FPS)
-        if stopping.is_set():
-            return
-        with contextlib.suppress(Exception):
-            sr = 16000
-            t = np.arange(int(0.8 * sr)) / sr
-            tone = (0.3 * np.sin(2 * np.pi * 180 * t) * (np.sin(2 * np.pi * 3 * t) > 0)).astype(np.float32)
-            st = SpeechStream(sr, lookahead_s=self.lookahead_s)
-            pl = StreamingPlanner(self.config, self._rhythm, self._ik, st)
-            for i in range(0, len(tone), 1600):  # a word too: plans place its stressed syllable with eSpeak NG
-                if st.feed(tone[i : i + 1600], words=[("hello", 0.1, 0.6)] if i == 0 else None):
-                    with self._plan_lock:
-                        pl.plan()
-            st.close()
-            with self._plan_lock:
-                pl.plan()
+        """Run the speech and planning code of a stream and of a say once (:meth:`Planning.warm_up`)."""
+        if self.planning is not None and self._worker is not None:
+            self.planning.warm_up(self._worker.stopping)
 
     def close(self) -> str | None:
         """Stop any utterance, glide to rest, torque off, disconnect. Idempotent; returns why rest was not
         reached, or None."""
         if not self._opened or self.loop is None:
             return None
-        with self._say_lock:
-            self._cancel_locked()
+        self._owner.call(self._cancel)
         try:
             return self.loop.close()
         finally:
+            if self.planning is not None:
+                self.planning.close()  # a say being prepared in the child process is dropped at once
             try:
                 if self._worker is not None:  # joined: a thread left in numba code can crash the exit
                     self._worker.stop()
             finally:
+                self._owner.stop()
                 if self._blas is not None:
                     self._blas.restore_original_limits()
                     self._blas = None
                 claims.release(self._claim, self)
 
     def _release_native(self) -> None:
-        """At interpreter exit, after :meth:`close`: drop the limiter's native (ruckig) objects before the
-        interpreter tears the extension modules down (nanobind reports those still alive as "leaked")."""
-        if self.loop is not None and self.loop._closed:
+        """At exit, after :meth:`close`: drop the limiter's native (ruckig) objects before the interpreter tears
+        the extension modules down (nanobind reports those still alive as "leaked")."""
+        if self.loop is not None and self.loop.closed:
             self.loop.limiter = None
 
     def __enter__(self) -> Robot:
@@ -524,30 +266,23 @@ class Robot:
     # --- idle ---------------------------------------------------------------------------------------
     def _idle_stop(self) -> None:
         """Speech is coming: the idle motion fades out now (see :meth:`IdleMotion.stop`)."""
-        if self.idle is not None and self.loop is not None:
-            self.idle.stop(self.loop.now_s)
+        if self.idle is not None:
+            self.idle.fade_out()
 
     def _idle_resume(self) -> None:
         """No speech after all (refused, abandoned, interrupted): the idle motion fades in again."""
-        if self.idle is not None and self.loop is not None:
-            self.idle.restart(self.loop.now_s)
-
-    def _idle_target(self, t_s: float) -> np.ndarray:
-        idle = self.idle
-        assert idle is not None
-        last = getattr(self, "_idle_last_s", None)
-        if last is None or t_s - last > 0.25:  # idle was not playing (late ticks skip less): fade in from zero
-            idle.restart(t_s)
-        self._idle_last_s = t_s
-        return idle.target(t_s)
+        if self.idle is not None:
+            self.idle.fade_in()
 
     # --- utterances ---------------------------------------------------------------------------------
-    def _check_open(self) -> None:
+    def check_open(self) -> ControlLoop:
+        """The session's running loop; raises why there is none (the backend failed, or not open)."""
         loop = self.loop
-        if loop is not None and loop._error is not None:
-            raise loop._error  # the backend failed: torque is already off
-        if not self._opened or loop is None or loop._closed:
+        if loop is not None and loop.error is not None:
+            raise loop.error  # the backend failed: torque is already off
+        if not self._opened or loop is None or loop.closed:
             raise InputError("robot session is not open (never opened, or closed); use `with Robot(...) as robot:`")
+        return loop
 
     def say(
         self,
@@ -563,8 +298,8 @@ class Robot:
     ) -> UtteranceHandle:
         """Speak ``text`` (eSpeak NG) or an ``audio`` file (with an optional ``transcript``) with gestures.
 
-        Returns at once (``wait=False``) or when the utterance is done: the speech and its motion are prepared in
-        the session's worker, in the order asked; a failure there (an unreadable file, an unknown gesture tag) is
+        Returns at once (``wait=False``) or when done: speech and motion are prepared by the session's worker (in
+        a child process by default), in the order asked; a failure there (an unreadable file, an unknown gesture tag) is
         raised by :meth:`UtteranceHandle.wait` and reported as an ``error`` event. An utterance still playing is
         replaced (its handle gets ``interrupted``; the new one starts from wherever the robot is, within every
         limit). ``style`` (calm, neutral, lively) or ``amount`` (0-2) and ``gestures`` ("auto", "none", or a folder
@@ -572,74 +307,44 @@ class Robot:
         Tags in ``text`` (``^start``, ``\\pau=MS\\``...: docs/animated-speech.md) are never spoken; a bad one is an
         InputError raised by ``wait``, or with ``lenient`` dropped with one logged warning.
         """
-        self._check_open()
+        self.check_open()
         if (text is None) == (audio is None):
             raise InputError("give either text to speak (TEXT, or --text) or --audio FILE (not both, not neither)")
         body = body_language(style, amount, gestures)
-        generator = self._generator if body.empty else None  # per-call: built in the worker
-        if generator is None and self.generator_name != "rhythm":
+        if not body.empty and self.options.generator != "rhythm":
             raise InputError(f'say: style, amount and gestures are options of the "rhythm" generator, not '
-                             f"{self.generator_name!r} (this session's)")  # fmt: skip
+                             f"{self.options.generator!r} (this session's)")  # fmt: skip
         h = UtteranceHandle("say")
         h._add("requested")
-        with self._say_lock:
-            asked = self._interrupts
-            self._preparing.add(h)
+        self._owner.post(lambda: self._preparing.add(h))  # (an interrupt from now on abandons it)
         self._idle_stop()
-
-        def drop() -> None:
-            self._preparing.discard(h)
-            h._abandon("session closed")
-
-        self._worker.submit(lambda: self._prepare(h, asked, text, audio, transcript, generator or body, lenient), drop)
+        assert self.planning is not None and self._worker is not None  # (made by open)
+        req = self.planning.say_request(text, audio, transcript, body, lenient)
+        self._worker.submit(lambda: self._prepare(h, req), lambda: h._abandon("session closed"))
         if wait:
             h.wait()
         return h
 
-    def _prepare(
-        self, h: UtteranceHandle, asked: int, text: Any, audio: Any, transcript: Any, gen: Any, lenient: bool = False
-    ) -> None:
-        """In the worker: speech, gestures, trajectory, then play (unless interrupted since it was asked for)."""
-        from robogest.pipeline import DEFAULT_TRAJECTORY_FPS, load_speech_input, motion_to_trajectory
-
+    def _prepare(self, h: UtteranceHandle, req: SayRequest) -> None:
+        """In the worker: speech, gestures, trajectory (by the preparer: here or in the child process); the owner
+        then plays it, unless interrupted since it was asked for."""
         try:
-            if self._interrupts != asked:  # barge-in before its turn: nothing to prepare
-                h._abandon("interrupt")
+            if h.done:  # barge-in before its turn (interrupt() abandoned it): nothing to prepare
                 self._idle_resume()
                 return
-            if isinstance(gen, BodyLanguage):
-                gen = self._generator_for(gen)
-            speech = load_speech_input(
-                text=text, audio=audio, transcript=transcript, voice=self.voice, words_per_minute=self.words_per_minute,
-                lenient=lenient, units=getattr(getattr(gen, "repertoire", None), "units", None),
-            )  # fmt: skip
-            motion = gen.generate(speech, seed=self.seed)
-            traj, _, _ = motion_to_trajectory(
-                motion, self.config, silent_spans=speech.silent_spans, fps=DEFAULT_TRAJECTORY_FPS,
-                audio_path=str(speech.audio_path or ""),
-            )  # fmt: skip
-            h.trajectory = traj
-            self._start(h, traj, lambda out: out.write(speech.audio), speech.sr, asked)
+            assert self.planning is not None
+            prepared = self.planning.preparer.prepare(req)
+            h.trajectory = prepared.trajectory
+            out = AudioOut(self.audio_device, prepared.sr)
+            out.write(prepared.audio)
+            out.finish()
+            out.open()  # outside the control tick that starts it
+            self._owner.post(lambda: self._play(h, prepared.trajectory, out))
         except Exception as e:  # reported on the handle; the session goes on
+            self._owner.post(lambda: self._preparing.discard(h))
             if not h.done:
                 h._fail(e)
             self._idle_resume()
-        finally:
-            with self._say_lock:
-                self._preparing.discard(h)
-
-    def _generator_for(self, body: BodyLanguage) -> Any:
-        """The ``rhythm`` generator of the session's options with ``body``'s overrides (kept for reuse)."""
-        from robogest.generators import make_generator
-
-        key = (body.amount, body.gestures)
-        gen = self._generators.get(key)
-        if gen is None:
-            gen = make_generator("rhythm", **body.options(self.generator_options))
-            if len(self._generators) >= 16:  # a client trying every amount must not grow it without bound
-                self._generators.clear()
-            self._generators[key] = gen
-        return gen
 
     def stream(
         self,
@@ -654,63 +359,49 @@ class Robot:
 
         ``style``/``amount``/``gestures`` as in :meth:`say`, for this stream only (streams always plan with the
         ``rhythm`` generator: the session's options when its generator is ``rhythm``, else the defaults)."""
-        self._check_open()
+        self.check_open()
         body = body_language(style, amount, gestures, what="stream")
-        if body.empty:
-            gen = self._generator if self._generator.name == "rhythm" else self._rhythm
-        else:
-            gen = self._generator_for(body) if self.generator_name == "rhythm" else self._rhythm_for(body)
+        assert self.planning is not None
+        gen = self.planning.stream_generator(body)
         return StreamUtterance(
-            self, int(sample_rate), self.lookahead_s if lookahead_s is None else lookahead_s, generator=gen
+            self, self.planning, int(sample_rate), self.lookahead_s if lookahead_s is None else lookahead_s, gen
         )
 
-    def _rhythm_for(self, body: BodyLanguage) -> Any:
-        """A stream's ``rhythm`` generator with ``body`` when the session's own generator is a learned one."""
-        from robogest.generators import make_generator
-
-        return make_generator("rhythm", **body.options({}))
-
-    def _start(
-        self, h: UtteranceHandle, traj: Any, fill: Callable[[AudioOut], None] | None, sr: int, asked: int
-    ) -> None:
-        """Hand ``traj`` to the loop; audio (``fill`` writes it) starts when the trajectory does. Not if
-        :meth:`interrupt` was called since the utterance was asked for (``asked``: the count then)."""
-        out = AudioOut(self._sd, sr)
-        if fill is not None:
-            fill(out)
-            out.finish()
-        out.open()  # outside the control tick that starts it
+    def _play(self, h: UtteranceHandle, traj: Trajectory, out: AudioOut) -> None:
+        """In the owner: hand ``traj`` to the loop, its audio to start with it; not if :meth:`interrupt` abandoned
+        it since it was asked for (the idle motion then comes back)."""
+        if h not in self._preparing:
+            out.stop()
+            h._abandon("interrupt")
+            self._idle_resume()
+            return
+        self._preparing.discard(h)
 
         def on_start() -> None:  # in the loop's tick: keep short
             play.on_start = None  # called once: the handle kept after the utterance must not keep its audio
-            played = out.start()
-            h._add("audio_start", played=played)
+            h._add("audio_start", played=out.start())
 
-        with self._say_lock:  # an interrupt now waits until this play is in the loop, where it stops it
-            self._preparing.discard(h)
-            if self._interrupts != asked:
-                out.stop()
-                h._abandon("interrupt")
-            else:
-                self._replace_audio(out)
-                play = self.loop.play(traj, approach_within_rad=self.approach_within_rad)
-                play.on_start = on_start
-                self._current = h
-                h._attach(play)
-        if h._play is None:  # abandoned: the idle motion comes back
-            self._idle_resume()
+        try:
+            play = self.check_open().play(traj, approach_within_rad=self.approach_within_rad)
+        except Exception as e:  # the session died or closed meanwhile
+            out.stop()
+            h._fail(e)
+            return
+        play.on_start = on_start
+        self._replace_audio(out)
+        self._current = h
+        h._attach(play)
 
     def _replace_audio(self, out: AudioOut | None) -> None:
-        """The caller holds ``_say_lock``: the speech audio playing stops (unless it is ``out``); ``out`` (None:
-        nothing) becomes the session's."""
+        """In the owner: the speech audio playing stops (unless it is ``out``); ``out`` (None: nothing) becomes the
+        session's."""
         if self._audio is not None and self._audio is not out:
             self._audio.stop()
         self._audio = out
 
-    def _cancel_locked(self) -> None:
-        """The caller holds ``_say_lock``: utterances asked for so far are not started (:meth:`_start`), the audio
-        stops, and every unfinished stream is interrupted (lock order: ``_say_lock``, then a stream's ``_state``)."""
-        self._interrupts += 1
+    def _cancel(self) -> None:
+        """In the owner: utterances asked for so far are not started (:meth:`_play`), the audio stops, and every
+        unfinished stream is interrupted."""
         for h in list(self._preparing):  # done now: whoever awaits a barged-in reply hears of it at once
             h._abandon("interrupt")
         self._preparing.clear()
@@ -724,24 +415,24 @@ class Robot:
         Returns ``{"interrupt_s": t, "at_rest_s": t or None}`` (``time.monotonic()``); ``at_rest_s`` is set when
         ``wait`` (the call blocks until rest is reached).
         """
-        self._check_open()
+        loop = self.check_open()
         t0 = time.monotonic()
-        # Under the lock, through the glide's start: the idle motion cannot be switched on in between
-        # (Robot._background_start). StreamUtterance._start takes _say_lock and its own _state one after the other,
-        # never nested.
-        with self._say_lock:
-            self._cancel_locked()
-            rest = self.loop.interrupt()
+
+        # One message: the idle motion cannot be switched on between the cancel and the glide's start.
+        def cancel_and_glide() -> PlayHandle:
+            self._cancel()
+            return loop.interrupt()
+
+        rest = self._owner.call(cancel_and_glide)
 
         def resume() -> None:
             try:
                 rest.wait()
             except RuntimeError:  # the session closed meanwhile: its own glide took the robot to rest
                 return
-            with self._say_lock:  # not between a newer interrupt's check and its glide
-                if self.idle is not None and not self.loop._closed and self.loop._rest is rest:
-                    self._idle_resume()
-                    self.loop.set_idle(self._idle_target)
+            idle = self.idle
+            if idle is not None:
+                self._owner.call(lambda: idle.after_glide(rest))
 
         if not wait:
             threading.Thread(target=resume, daemon=True, name="robogest-resume-idle").start()
@@ -749,12 +440,28 @@ class Robot:
         resume()
         return {"interrupt_s": t0, "at_rest_s": rest.events["done"].monotonic_s if "done" in rest.events else None}
 
+    # --- what a stream tells the session (run in the owner, in order with everything else) ---------------------
+    def _stream_opened(self, st: StreamUtterance, opened: bool = True) -> None:
+        self._owner.post(lambda: self._streams.add(st) if opened else self._streams.discard(st))
+
+    def _stream_playing(self, st: StreamUtterance, out: AudioOut) -> None:
+        """Its first frames play: it replaces the utterance playing (whose audio stops now), unless interrupted."""
+
+        def message() -> None:
+            if st.dead:  # interrupted since its play began
+                out.stop()
+                return
+            self._replace_audio(out)
+            self._current = st.handle
+
+        self._owner.post(message)
+
     @property
     def error(self) -> BaseException | None:
         """Why the session died (the control loop failed: a servo lost, the port gone; it went to rest and turned
         torque off), or None while it lives. What a server polls to tell its clients at once."""
         loop = self.loop
-        return None if loop is None else loop._error
+        return None if loop is None else loop.error
 
     def status(self) -> dict:
         """Session state as plain data (what ``robogest serve`` answers to ``status``)."""
@@ -764,7 +471,7 @@ class Robot:
         return {
             "robot": self.config.name,
             "backend": self.backend_name,
-            "open": bool(self._opened and loop is not None and not loop._closed),
+            "open": bool(self._opened and loop is not None and not loop.closed),
             "error": None if err is None else str(err),
             "speaking": bool(cur is not None and not cur.done),
             "utterance": cur.id if cur is not None else None,
@@ -777,226 +484,4 @@ class Robot:
         }
 
 
-class StreamUtterance:
-    """A streamed utterance (see :meth:`Robot.stream`); a context manager that closes the stream on exit.
-
-    ``feed(chunk, words=None)``: mono int16/float32 PCM at ``sample_rate`` (10-100 ms per chunk), with optional
-    word timings ``(text, start_s, end_s)`` in seconds from the utterance start. ``feed`` only checks and queues
-    the chunk: the front-end and the planner run in the stream's own thread, so a voice agent's audio loop is never
-    held up by planning. On leaving the block the stream is closed and the motion finishes; an exception inside
-    the block interrupts the robot (glide to rest) instead. A failure in the planning thread interrupts the robot
-    too, and is raised by the next ``feed``, ``close`` or ``wait``.
-    """
-
-    def __init__(self, robot: Robot, sample_rate: int, lookahead_s: float, generator: Any = None) -> None:
-        from robogest.live.planner import StreamingPlanner
-        from robogest.speech.stream import SpeechStream, pcm_to_float
-
-        self.robot = robot
-        self.sample_rate = sample_rate
-        self._pcm = pcm_to_float
-        self.speech = SpeechStream(sample_rate, lookahead_s=lookahead_s)
-        gen = robot._rhythm if generator is None else generator
-        self.planner = StreamingPlanner(robot.config, gen, robot._ik, self.speech, seed=robot.seed)
-        self.handle = UtteranceHandle("stream")
-        self.handle.trajectory = self.planner.feed
-        self._out = AudioOut(robot._sd, sample_rate)
-        self._out.open()  # outside the control tick that starts it
-        self._chunks: list[tuple[float, int]] = []  # (offset_s, n_samples) of each chunk, for scheduling
-        self._offset_n = 0
-        self._t_first: float | None = None  # time.monotonic() of the first chunk: audio time 0 arrived then
-        self._last_word_s = -math.inf
-        self._playing = False
-        self._audio_t0: float | None = None  # monotonic start of the audio when the caller must play it
-        self._chunk_lock = threading.Lock()  # _chunks and _audio_t0: the caller's thread vs. the loop's
-        self._dead = False
-        self._closed = False
-        self._error: BaseException | None = None
-        self._state = threading.Lock()  # starting the motion vs. an interrupt
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
-        self._thread = threading.Thread(target=self._run, daemon=True, name=f"robogest-stream-{self.handle.id}")
-        robot._streams.add(self)  # the utterance playing keeps its audio until this one has motion (_start)
-        self._thread.start()
-
-    def __enter__(self) -> StreamUtterance:
-        return self
-
-    def __exit__(self, et: type[BaseException] | None, *exc: object) -> None:
-        if et is not None and not self._dead and self.robot.loop is not None and not self.robot.loop._closed:
-            with contextlib.suppress(Exception):
-                self.robot.interrupt(wait=issubclass(et, Exception))
-            return
-        self.close()
-
-    def _interrupt(self) -> None:
-        with self._state:
-            self._dead = True
-            if not self._playing and not self.handle.done:
-                self._out.stop()
-                self.handle._abandon("interrupt")
-        self._queue.put(_STOP)
-
-    def _raise_error(self) -> None:
-        if self._error is not None:
-            raise self._error
-
-    def feed(self, chunk: np.ndarray | bytes, words: Sequence[tuple[str, float, float]] | None = None) -> None:
-        """Add a chunk of speech (ignored once the utterance was interrupted); returns at once.
-
-        Raises
-        ------
-        InputError
-            A malformed chunk or word, a stream longer than one utterance may be, or ``feed`` after ``close``.
-        """
-        from robogest.speech.stream import parse_word
-
-        self._raise_error()
-        if self._dead:
-            return
-        if self._closed:
-            raise InputError("stream: feed() after the stream was closed; open a new robot.stream()")
-        a = self._pcm(chunk)
-        parsed, last_s = [], self._last_word_s
-        for w in words or ():
-            word = parse_word(w, last_s)
-            last_s = word.start_s
-            parsed.append(word)
-        max_s = self.speech.config.max_duration_s
-        if (self._offset_n + a.shape[0]) / self.sample_rate > max_s:
-            raise InputError(f"stream: longer than the maximum {max_s:.0f} s of one utterance; split it")
-        if self._t_first is None:
-            self._t_first = time.monotonic()
-            self.handle._add("first_chunk", self._t_first)
-            self.robot._idle_stop()
-        off = self._offset_n / self.sample_rate
-        if a.shape[0]:
-            with self._chunk_lock:
-                self._chunks.append((off, a.shape[0]))
-                if self._audio_t0 is not None:
-                    self.handle._add("audio_chunk", self._audio_t0 + off / self.robot.time_scale, offset_s=off,
-                                     n_samples=a.shape[0])  # fmt: skip
-        self._last_word_s = last_s  # only once the whole message is taken
-        self._offset_n += a.shape[0]
-        self._out.write(a)
-        self._queue.put((a, parsed))
-
-    # --- the stream's thread -----------------------------------------------------------------------
-    def _run(self) -> None:
-        try:
-            self._serve()
-        finally:
-            self.robot._streams.discard(self)  # planned to the end (or stopped): interrupt() stops its motion
-
-    def _serve(self) -> None:
-        try:
-            while True:
-                batch = [self._queue.get()]
-                while not self._queue.empty():  # take everything that arrived while the last plan ran
-                    batch.append(self._queue.get())
-                updated = closing = False
-                for item in batch:
-                    if item is _STOP or self._dead:
-                        return
-                    if item is _CLOSE:
-                        closing = True
-                        break
-                    updated |= self.speech.feed(*item)
-                if closing:
-                    self._finish()
-                    return
-                if updated and self._plan():
-                    self._start()
-        except BaseException as e:  # a bug or a bad input found late: stop the utterance, keep the session
-            self._error = e
-            with self._state:
-                self._dead = True
-                playing = self._playing
-                if not playing:
-                    self.handle._abandon(f"error: {e}")
-            play = self.handle._play
-            if playing and play is not None and not play.done:  # still what the robot plays: stop it
-                with contextlib.suppress(Exception):
-                    self.robot.interrupt(wait=False)
-            elif not playing:  # (a stream another utterance has replaced leaves that one alone)
-                self.robot._idle_resume()
-
-    def _plan(self) -> int:
-        with self.robot._plan_lock:  # the planners share the session's IK solver
-            return self.planner.plan()
-
-    def _finish(self) -> None:
-        self._out.finish()  # the audio stream stops by itself once it has played the last chunk
-        self.speech.close()
-        self._plan()
-        self.planner.feed.close()
-        if self.planner.feed.n_frames:
-            self._start()
-            return
-        with self._state:
-            if self._playing or self._dead:
-                return
-            self.handle._abandon("no speech")
-        self.robot._idle_resume()
-
-    def _start(self) -> None:
-        """The first frames exist: play them now (the audio starts with them)."""
-        r = self.robot
-        h = self.handle
-        out = self._out
-        with self._state:
-            if self._playing or self._dead:
-                return
-            self._playing = True
-            # Speech and motion play L behind the audio as it arrives (so every beat is heard before its stroke
-            # plays), or later if this first plan came later.
-            start_at = None
-            if r.loop.backend.realtime and self._t_first is not None:
-                start_at = max(r.loop.now_s, r.loop.loop_s_at(self._t_first + self.speech.lookahead_s))
-            try:
-                play = r.loop.play(self.planner.feed, start_at=start_at, approach_within_rad=r.approach_within_rad)
-            except BaseException:  # the loop failed or closed: _run abandons the handle (not playing after all)
-                self._playing = False
-                raise
-
-            def on_start() -> None:  # in the loop's tick: keep short
-                play.on_start = None  # called once: the handle kept after the utterance must not keep this stream
-                played = out.start()
-                t = time.monotonic()
-                h._add("audio_start", t, played=played)
-                if not played:  # the caller plays it: when each chunk should start
-                    with self._chunk_lock:
-                        self._audio_t0 = t
-                        for off, n in self._chunks:
-                            h._add("audio_chunk", t + off / r.time_scale, offset_s=off, n_samples=n)
-
-            play.on_start = on_start
-            h._attach(play)
-        with r._say_lock:  # this utterance replaces the one playing: its audio stops now, not at feed time
-            if self._dead:  # interrupted since the play began (interrupt() holds this lock throughout)
-                out.stop()
-                return
-            r._replace_audio(out)
-            r._current = h
-
-    def close(self) -> UtteranceHandle:
-        """No more speech: the rest is planned (ending at rest) and plays out. Returns the handle at once."""
-        self._raise_error()
-        if self._closed or self._dead:
-            return self.handle
-        self._closed = True
-        self._queue.put(_CLOSE)
-        return self.handle
-
-    def wait(self, timeout_s: float | None = None) -> bool:
-        """Block until the utterance is done (or ``timeout_s``); raises a failure of the planning thread."""
-        done = self.handle.wait(timeout_s)
-        self._raise_error()
-        return done
-
-    @property
-    def events(self) -> list[dict]:
-        return self.handle.events
-
-
-#: Queue markers of the stream's thread.
-_CLOSE, _STOP = object(), object()
+__all__ = ["EVENT_TYPES", "Robot", "StreamUtterance", "UtteranceHandle"]

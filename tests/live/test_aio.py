@@ -23,18 +23,20 @@ TEXT = "So here is the plan. We walk to the door, then we turn left and wait for
 
 
 @pytest.mark.slow
-def test_say_is_prepared_in_the_worker_and_its_failure_is_raised_by_wait_and_reported_as_an_event():
-    with Robot("humanoid_xl430", **FAST) as robot:
-        generate, threads = robot._generator.generate, []
+@pytest.mark.parametrize("prepare", ["thread", "process"])
+def test_say_is_prepared_off_the_callers_thread_and_its_failure_is_raised_by_wait_and_reported_as_an_event(prepare):
+    with Robot("humanoid_xl430", prepare=prepare, **FAST) as robot:
+        generate, threads = robot.planning.generator.generate, []
 
         def spy(*a, **k):
             threads.append(threading.current_thread().name)
             return generate(*a, **k)
 
-        robot._generator.generate = spy
+        robot.planning.generator.generate = spy
         h = robot.say("Hello there.", wait=False)
         assert h.wait(60) and h.event("done") is not None
-        assert threads == ["robogest-warm-up"]  # the session's worker, not the caller's thread
+        # the session's worker, not the caller's thread; or not this process at all
+        assert threads == (["robogest-warm-up"] if prepare == "thread" else [])
 
         bad = robot.say(audio=str(ROOT / "no_such_file.wav"), wait=False)  # queued: returns a handle
         with pytest.raises(InputError, match="no_such_file"):
@@ -122,7 +124,7 @@ def test_a_script_that_exits_without_close_ends_at_rest_and_prints_no_leak_messa
         "import atexit\n"
         "from robogest import Robot\n"
         "robot = Robot('humanoid_xl430', backend='sim', audio=False, warm_up=False)\n"
-        "atexit.register(lambda: print('closed at exit:', robot.loop._closed, flush=True))  # runs after robogest's\n"
+        "atexit.register(lambda: print('closed at exit:', robot.loop.closed, flush=True))  # runs after robogest's\n"
         "robot.open()\n"
         "h = robot.say('Hello there, and goodbye.', wait=False)\n"
         "h.wait_started(120)\n"
@@ -174,7 +176,7 @@ def test_await_say_stream_and_interrupt_never_block_the_event_loop():
             out["stream_events"] = {e["type"] for e in s.handle.events}
             with pytest.raises(InputError, match="no_such_file"):
                 await robot.say(audio=str(ROOT / "no_such_file.wav"))
-        out["closed"] = robot.robot.loop._closed
+        out["closed"] = robot.robot.loop.closed
         return out
 
     out = asyncio.run(main())
@@ -189,10 +191,10 @@ def test_await_say_stream_and_interrupt_never_block_the_event_loop():
 def test_a_session_whose_robot_failed_does_not_keep_it_from_being_opened_again():
     """What serve's reopen does after a servo was lost: the dead session holds nothing."""
     with Robot("humanoid_xl430", **FAST) as dead:
-        dead.loop._error = BackendError("servo id 3: lost (simulated)")
+        dead.loop.error = BackendError("servo id 3: lost (simulated)")
         with Robot("humanoid_xl430", **FAST) as again:
             assert again.status()["open"]
-        dead.loop._error = None
+        dead.loop.error = None
 
 
 def test_per_call_styles_are_the_clis():

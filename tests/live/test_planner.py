@@ -196,7 +196,7 @@ def test_a_failure_while_planning_stops_the_utterance_and_is_raised_to_the_calle
             s.close()
             s.wait(30)
         assert s.handle.interrupted
-        robot.loop._rest.wait(30)  # it glides to rest; the session stays open
+        robot.loop.resting.wait(30)  # it glides to rest; the session stays open
         np.testing.assert_allclose(robot.loop.goal_rad, robot.loop.rest_q_rad, atol=1e-4)
         assert robot.status()["open"]
         assert robot.say("Still here.").done

@@ -195,20 +195,22 @@ def test_session_refuses_bad_input_with_one_clear_line():
         robot.say("Hi.")
 
 
-def test_an_interrupt_while_a_say_is_still_being_prepared_keeps_it_from_starting(monkeypatch):
+@pytest.mark.parametrize("prepare", ["process", "thread"])
+def test_an_interrupt_while_a_say_is_still_being_prepared_keeps_it_from_starting(monkeypatch, prepare):
     """A voice agent's barge-in can come before the reply's motion exists: that reply must never start."""
     import threading
 
-    with Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST, warm_up=False) as robot:
-        generate = robot._generator.generate
+    opts = {"idle": False, "audio": False, "time_scale": FAST, "warm_up": False, "prepare": prepare}
+    with Robot("humanoid_xl430", backend="sim", **opts) as robot:
+        prepare_say = robot.planning.preparer.prepare
         preparing = threading.Event()
 
-        def slow_generate(*a, **k):
+        def slow_prepare(*a, **k):
             preparing.set()
             time.sleep(0.3)
-            return generate(*a, **k)
+            return prepare_say(*a, **k)
 
-        monkeypatch.setattr(robot._generator, "generate", slow_generate)
+        monkeypatch.setattr(robot.planning.preparer, "prepare", slow_prepare)
         box: dict = {}
         t = threading.Thread(target=lambda: box.update(h=robot.say("Let me tell you about it.", wait=False)))
         t.start()
@@ -227,7 +229,7 @@ def test_plans_of_streams_and_the_warm_up_never_share_the_ik_solver_at_once():
     import threading
 
     with Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST) as robot:
-        retarget, inside, worst = robot._ik.retarget, [0], [0]
+        retarget, inside, worst = robot.planning.ik.retarget, [0], [0]
         count = threading.Lock()
 
         def counted(*a, **k):
@@ -241,7 +243,7 @@ def test_plans_of_streams_and_the_warm_up_never_share_the_ik_solver_at_once():
                 with count:
                     inside[0] -= 1
 
-        robot._ik.retarget = counted
+        robot.planning.ik.retarget = counted
         sp = synthesize("One, two, three, four.")
         streams = [robot.stream(sp.sr), robot.stream(sp.sr)]  # the warm-up runs too
         for i in range(0, len(sp.audio), 1600):
@@ -289,8 +291,8 @@ def test_a_signal_as_open_finishes_still_ends_at_rest_with_torque_off(monkeypatc
     robot = Robot("humanoid_xl430", backend="sim", idle=False, audio=False, time_scale=FAST, warm_up=False)
     with pytest.raises(KeyboardInterrupt), robot:
         pass
-    assert robot.loop._closed and not robot.loop._thread.is_alive()
-    assert robot.loop.backend.inner._torque is False
+    assert robot.loop.closed and not robot.loop._thread.is_alive()
+    assert robot.loop.backend._torque is False
 
 
 def test_says_streams_and_interrupts_from_several_threads_never_deadlock_and_end_at_rest():
