@@ -27,7 +27,6 @@ import weakref
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from robogest.media.audio import AudioOut, open_output
 from robogest.errors import InputError
 from robogest.live import claims
 from robogest.live.config import SessionConfig
@@ -40,6 +39,7 @@ from robogest.live.stream import StreamUtterance
 from robogest.live.style import body_language
 from robogest.live.utterance import EVENT_TYPES, UtteranceHandle
 from robogest.live.worker import Worker
+from robogest.media.audio import AudioOut, open_output
 
 if TYPE_CHECKING:
     from robogest.backends.control import ControlLoop, PlayHandle

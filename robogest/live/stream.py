@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from robogest.media.audio import AudioOut
 from robogest.errors import InputError
 from robogest.live.utterance import UtteranceHandle
+from robogest.media.audio import AudioOut
 
 if TYPE_CHECKING:
     from robogest.live.planning import Planning
