@@ -111,9 +111,9 @@ def test_second_interrupt_during_the_glide_does_not_drop_the_arms(monkeypatch, c
     after: list[np.ndarray] = []
 
     def write_and_interrupt(self, q, **kw):
-        from robogest.backends import control
+        from robogest.backends import signals
 
-        if control._SIG.fired is not None:
+        if signals._SIG.fired is not None:
             after.append(np.array(q, dtype=float))
             if len(after) == 3:
                 signal.raise_signal(signal.SIGINT)
@@ -142,9 +142,9 @@ def test_interrupt_when_the_bus_is_gone_says_rest_was_not_reached(monkeypatch, c
     send = DynamixelBackend._send_goal
 
     def send_or_fail(self, q):
-        from robogest.backends import control
+        from robogest.backends import signals
 
-        if control._SIG.fired is not None:
+        if signals._SIG.fired is not None:
             raise BackendError("serial port lost while sync writing GOAL_POSITION")
         return send(self, q)
 

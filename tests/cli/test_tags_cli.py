@@ -142,7 +142,9 @@ def test_robot_say_refuses_or_drops_unknown_tags_and_never_speaks_them(monkeypat
     from robogest.live import Robot
 
     said = _spoken(monkeypatch)
-    with Robot("humanoid_xl430", backend="sim", idle=False, time_scale=4.0, warm_up=False) as robot:
+    # prepared in this process so that the spy sees what eSpeak is given (the child process prepares the same:
+    # tests/live/test_prepare.py)
+    with Robot("humanoid_xl430", backend="sim", idle=False, time_scale=4.0, warm_up=False, prepare="thread") as robot:
         with pytest.raises(InputError, match=r"tag '\^jump\(away\)': unknown tag"):
             robot.say("The exit is ^jump(away) behind the stairs.")
         assert said == []

@@ -129,5 +129,5 @@ def test_a_model_wrapped_without_normalisation_says_so():
 
     net = GesticulatorNet(GesticulatorConfig(n_acoustic=4, n_text=3, n_pose=6)).eval()
     gen = GesticulatorGenerator.from_model(net, FeatureConfig(text_encoder="hash-test"))
-    with pytest.raises(InputError, match=r"needs its model's normalisation: pass norm="):
+    with pytest.raises(InputError, match=r"no normalisation statistics; pass norm= to GesticulatorGenerator"):
         gen.predict(np.zeros((5, 7), np.float32))

@@ -8,8 +8,6 @@ from collections.abc import Iterable, Iterator
 import numpy as np
 
 from robogest.data.features import expmap_to_motion, speech_inputs
-from robogest.data.prep import Normalization
-from robogest.errors import InputError
 from robogest.generators.learned.checkpoint import CheckpointGenerator
 from robogest.generators.learned.gesticulator.model import GesticulatorConfig, GesticulatorNet, torch
 from robogest.motion.human_motion import HumanMotion
@@ -33,20 +31,10 @@ class GesticulatorGenerator(CheckpointGenerator):
     config_cls = GesticulatorConfig
     net_cls = GesticulatorNet
 
-    @property
-    def normalization(self) -> Normalization:
-        """The normalisation the model was trained with; a model wrapped without one cannot read or write poses."""
-        if self.norm is None:
-            raise InputError(
-                "the gesticulator generator needs its model's normalisation: pass norm= to "
-                "GesticulatorGenerator.from_model (a checkpoint always carries one)"
-            )
-        return self.norm
-
     def inputs(self, speech: Speech) -> np.ndarray:
         """Normalised model inputs ``(T, n_input)`` of ``speech`` (re-analysed when its fps differs)."""
         acoustic, text = speech_inputs(self.at_model_rate(speech), self.features, self.encoder)  # (T, 69), (T, D)
-        return np.concatenate([self.normalization.acoustic(acoustic), text], axis=1)  # (T, 69 + D)
+        return np.concatenate([self.norm.acoustic(acoustic), text], axis=1)  # (T, 69 + D)
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """Denormalised exponential maps ``(T, n_pose)`` for normalised inputs ``x`` ``(T, n_input)``.
@@ -61,7 +49,7 @@ class GesticulatorGenerator(CheckpointGenerator):
         with torch.inference_mode():
             s = torch.from_numpy(padded.astype(np.float32)).to(self.device)[None]  # (1, T + 30, F)
             y = self.model(s, None, period=1)[0]  # (T, P); no ground truth, so its own poses feed back
-        return self.normalization.pose_inverse(y.cpu().numpy())
+        return self.norm.pose_inverse(y.cpu().numpy())
 
     def infer_stream(self, frames: Iterable[np.ndarray]) -> Iterator[np.ndarray]:
         """Frame-by-frame inference with the model's 1 s look-ahead.
@@ -88,7 +76,7 @@ class GesticulatorGenerator(CheckpointGenerator):
             win = torch.stack(tuple(window))[None].flatten(1)  # (W, frame_dim) -> (1, W * frame_dim)
             y = self.model.decode(self.model.layer1(win), prev)  # (1, P)
             prev = torch.cat([prev[:, 1:], y[:, None]], dim=1)  # (1, 3, P)
-            return self.normalization.pose_inverse(y[0].cpu().numpy())
+            return self.norm.pose_inverse(y[0].cpu().numpy())
 
         with torch.inference_mode():
             for frame in frames:
