@@ -14,7 +14,8 @@ chosen. Each model then generates the test 25 % free-running from its audio and 
 part holds (motion, words, stressed vowels) influences training or selection. Two baselines get the same
 evaluation: the mean training pose held still, and a replay of a random stretch of the training motion of the
 same length (a new stretch per seed). Every seed trains every model afresh from its own seed, so seeds can also
-run as separate processes with their own ``--out``, pooled by ``--report``; the tables give the mean over seeds
+run as separate processes with their own ``--out``, pooled by ``--report`` (bit-identical tables on the BEAT2
+sample); the tables give the mean over seeds
 and, in brackets, the worst seed.
 
 Printed per model and baseline (all on the test part unless said otherwise):

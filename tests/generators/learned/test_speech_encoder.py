@@ -68,3 +68,42 @@ def test_errors_name_the_path(tmp_path, tiny_wav2vec2):
         PretrainedSpeechEncoder(no_weights)
     with pytest.raises(InputError, match=r"audio at 8000 Hz, the model reads 16000 Hz"):
         load_speech_encoder(tiny_wav2vec2).frames(np.zeros(800, np.float32), 8000, 2, 20.0)
+
+
+def test_rhythmic_takes_its_high_level_features_from_the_encoder(tiny_wav2vec2, fixture_data, tmp_path):
+    """``--set speech_encoder=PATH``: the checkpoint records the encoder and its width, the lexeme interpreters read
+    its features as ``a_high`` (the log-mel's conv layers stay ``a_low``), and the model generates from speech."""
+    from robogest.generators.learned import train_model
+    from robogest.generators.learned.rhythmic import RhythmicGenerator
+    from robogest.learn.checkpoint import load_checkpoint
+    from robogest.learn.trainer import TrainConfig
+    from robogest.speech import synthesize
+    from tests.generators.learned.conftest import HASH16, RHYTHMIC_SMALL
+
+    cfg = TrainConfig(
+        model="rhythmic", data=str(fixture_data), out=str(tmp_path / "o"), epochs=4, lr=2e-3, batch_size=8,
+        window_stride=30, val_fraction=0.0, device="cpu", cache_dir=str(tmp_path / "cache"),
+        model_overrides={**RHYTHMIC_SMALL, "speech_encoder": str(tiny_wav2vec2)}, **HASH16,
+    )  # fmt: skip
+    best = train_model(cfg, log=lambda s: None)
+    mc = load_checkpoint(best)["model_config"]
+    assert mc["speech_encoder"] == str(tiny_wav2vec2) and mc["speech_dim"] == 16
+    gen = RhythmicGenerator(best)
+    net, c = gen.model, gen.config
+    assert c.n_audio == c.n_mels + 16 and net.high_dim == 16 and net.low_dim == RHYTHMIC_SMALL["audio_channels"]
+    blocks = torch.randn(3, c.block, c.n_audio)
+    a_low, a_high, _ = net.audio_features(blocks)
+    torch.testing.assert_close(a_high, blocks[..., c.n_mels :])  # the encoder's features, block by block
+    torch.testing.assert_close(a_low, net.audio(blocks[..., : c.n_mels])[net.low_index])
+    speech = synthesize("Hello there, I am a robot and I wave.")
+    motion = gen.generate(speech)
+    assert motion.n_frames == speech.n_frames and np.isfinite(motion.rotations).all()
+
+    bert = tmp_path / "bert"
+    transformers.BertConfig(
+        hidden_size=8, num_hidden_layers=1, num_attention_heads=2, intermediate_size=8
+    ).save_pretrained(bert)
+    bad = TrainConfig(**{**cfg.__dict__, "out": str(tmp_path / "p"), "model_overrides": {"speech_encoder": str(bert)}})
+    with pytest.raises(InputError, match=rf"speech encoder {bert}: a 'bert' checkpoint"):
+        train_model(bad, log=lambda s: None)
+    assert not (tmp_path / "p" / "last.pt").exists()

@@ -89,6 +89,11 @@ class RhythmicConfig:
         The learnable style codes ``{z_i}`` (§5.2-5.3), one row of :attr:`RhythmicNet.style_codes` per training
         block: take ``style_takes[t]``'s block ``c`` is row ``style_rows[t] + c`` (``style_rows[-1]`` rows in all,
         :func:`style_row_count` per take). Filled from the training takes by :meth:`RhythmicSpec.fit_config`.
+    speech_encoder : str
+        Folder of a local wav2vec2-family checkpoint (:mod:`robogest.generators.learned.speech_encoder`) whose last
+        hidden layer becomes ``a_high`` (the paper's pretrained vq-wav2vec features); "" (default): none.
+    speech_dim : int
+        That encoder's feature size, filled from the checkpoint by ``RhythmicSpec.make_config``.
     """
 
     n_acoustic: int = 69
@@ -139,6 +144,8 @@ class RhythmicConfig:
     speaker_dim: int = 8
     style_takes: tuple = ()
     style_rows: tuple = ()
+    speech_encoder: str = ""
+    speech_dim: int = 0
 
     def __post_init__(self) -> None:
         if self.stages not in ("sequential", "joint"):
@@ -150,6 +157,11 @@ class RhythmicConfig:
             )
         if self.window_blocks < 3:
             raise InputError("rhythmic option window_blocks must be >= 3 (a block and its two neighbours)")
+
+    @property
+    def n_audio(self) -> int:
+        """Audio columns of a block: the log-mel, then the pretrained speech encoder's features (if any)."""
+        return self.n_mels + self.speech_dim
 
     @property
     def block(self) -> int:

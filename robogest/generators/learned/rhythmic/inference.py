@@ -105,7 +105,7 @@ class RhythmicGenerator(CheckpointGenerator):
         t_frames = speech.n_frames
         acoustic, text = speech_inputs(speech, self.features, self.encoder)  # (T, 69), (T, D)
         audio = None
-        if c.audio_tsm:
+        if c.audio_tsm or c.speech_encoder:  # the recording: time-scaled blocks, pretrained speech features
             from robogest.speech.audio import resample
 
             audio = resample(speech.audio, speech.sr, c.audio_sr)
@@ -118,7 +118,7 @@ class RhythmicGenerator(CheckpointGenerator):
         dev = self.device
         with torch.inference_mode():
             b = blk.to(dev)  # (C, K, M + D)
-            mel, txt = b[..., : c.n_mels], b[..., c.n_mels :]
+            mel, txt = b[..., : c.n_audio], b[..., c.n_audio :]
             a_low, a_high, _ = m.audio_features(mel)  # (C, K, d_a), (C, K, d_A)
             ip, inx = np.maximum(np.arange(n_b) - 1, 0), np.minimum(np.arange(n_b) + 1, n_b - 1)
             inp = BlockInputs(

@@ -108,8 +108,8 @@ class RhythmicNet(nn.Module):
         if not 1 <= c.low_layer <= c.audio_layers:
             raise InputError(f"low_layer must be in 1..{c.audio_layers}")
         self.audio = AUDIO_ENCODERS[c.audio_encoder](c)
-        dims = self.audio.layer_dims
-        self.low_index = min(c.low_layer, len(dims)) - 1
+        self.low_index = min(c.low_layer, len(self.audio.layer_dims)) - 1
+        dims = [*self.audio.layer_dims, *([c.speech_dim] if c.speech_encoder else [])]  # pretrained: a_high
         self.low_dim, self.high_dim = dims[self.low_index], dims[-1]
         self.proj_t = nn.Linear(c.n_text, c.contrast_dim)  # F_t
         self.proj_a = nn.ModuleList(nn.Linear(d, c.contrast_dim) for d in dims)  # F_a^l
@@ -128,8 +128,10 @@ class RhythmicNet(nn.Module):
 
     # ---- features
     def audio_features(self, mel: Tensor) -> tuple[Tensor, Tensor, list[Tensor]]:
-        """``mel`` ``(N, K, n_mels)`` -> ``(a_low, a_high, layers)``: ``(N, K, d_a)``, ``(N, K, d_A)``, list."""
-        layers = self.audio(mel)
+        """``mel`` ``(N, K, n_audio)`` -> ``(a_low, a_high, layers)``: ``(N, K, d_a)``, ``(N, K, d_A)``, list."""
+        layers = self.audio(mel[..., : self.config.n_mels])
+        if self.config.speech_encoder:  # the pretrained speech encoder's features are the last, high-level layer
+            layers = [*layers, mel[..., self.config.n_mels :]]
         return layers[self.low_index], layers[-1], layers
 
     def contrastive_loss(self, text: Tensor, layers: list[Tensor], mask: Tensor) -> Tensor:
@@ -182,7 +184,7 @@ class RhythmicNet(nn.Module):
         (``W`` consecutive blocks laid end to end; the last three input channels: silent-block flag, speaker index,
         style-code row) -> blocks."""
         c = self.config
-        k, m, d = c.block, c.n_mels, c.n_text
+        k, m, d = c.block, c.n_audio, c.n_text
         b, length = speech.shape[:2]
         if speech.shape[2] != m + d + 3 or length % k:
             raise InputError(

@@ -16,6 +16,7 @@ from robogest.generators.learned.rhythmic.blocks import (
     tsm_mel_blocks,
 )
 from robogest.generators.learned.rhythmic.config import TEXT_SCALE, RhythmicConfig
+from robogest.generators.learned.speech_encoder import speech_frames
 
 
 # --------------------------------------------------------------------------------------------------- beat rhythm
@@ -131,6 +132,9 @@ def take_blocks(
         mel_blocks = (tsm_mel_blocks(audio, c.audio_sr, bounds, c.fps, k, m, c.mel_window_s) - mean) / std
     else:
         mel_blocks = normalize_clips(mel, bounds, k)
+    if c.speech_encoder:  # the pretrained encoder's features, cut into the same blocks: a_high (speech_encoder.py)
+        speech = speech_frames(c.speech_encoder, audio, c.audio_sr, mel.shape[0], c.fps)  # (T, speech_dim)
+        mel_blocks = np.concatenate([mel_blocks, normalize_clips(speech, bounds, k)], axis=2)  # (C, K, n_audio)
     pose_blocks = normalize_clips(norm.pose(poses), bounds, k) if poses is not None else None
     return TakeBlocks(bounds, silent, mel_blocks.astype(np.float32), normalize_clips(text, bounds, k), pose_blocks)
 

@@ -21,6 +21,7 @@ from robogest.generators.learned.rhythmic.freerun import free_run, free_running_
 from robogest.generators.learned.rhythmic.model import RhythmicNet
 from robogest.generators.learned.rhythmic.networks import AUDIO_ENCODERS
 from robogest.generators.learned.rhythmic.take import take_blocks
+from robogest.generators.learned.speech_encoder import load_speech_encoder
 from robogest.learn import config_with_overrides
 from robogest.learn.spec import ModelSpec
 
@@ -40,6 +41,8 @@ class RhythmicSpec(ModelSpec[RhythmicConfig]):
         fixed = {"n_acoustic": n_acoustic, "n_text": n_text, "n_pose": n_pose, "n_mels": front.n_mels,
                  "audio_sr": front.sr, "mel_window_s": front.mel_window_s, "fps": front.fps}  # fmt: skip
         config: RhythmicConfig = config_with_overrides(RhythmicConfig, "rhythmic", overrides, **fixed)
+        if config.speech_encoder:  # loaded (and checked) before any training; its width sizes the blocks
+            config = dataclasses.replace(config, speech_dim=load_speech_encoder(config.speech_encoder).dim)
         return config
 
     def config_from_dict(self, d: dict[str, Any]) -> RhythmicConfig:
@@ -157,7 +160,7 @@ class RhythmicSpec(ModelSpec[RhythmicConfig]):
         """
         k, m = config.block, config.n_mels
         w = length // k
-        f = m + config.n_text + 3
+        f = config.n_audio + config.n_text + 3
         table = {s: j for j, s in enumerate(config.speakers)}
         style_rows = dict(zip(config.style_takes, itertools.pairwise(config.style_rows), strict=True))
 
@@ -167,7 +170,8 @@ class RhythmicSpec(ModelSpec[RhythmicConfig]):
                 beats, tsm_db = None, None  # no recording: beats and blocks of the log-mel frames
                 if t.audio_path is not None:  # beats by the speech front-end's rule, blocks time-scaled
                     beats, tsm_db = take_rhythm_blocks(t, config, cache_dir)
-                tb = take_blocks(t.acoustic[:, :m], t.text, norm, config, None, t.poses, beats, tsm_db)
+                audio = t.read_audio(config.audio_sr) if config.speech_encoder and t.audio_path else None
+                tb = take_blocks(t.acoustic[:, :m], t.text, norm, config, audio, t.poses, beats, tsm_db)
                 if tb.poses is None:  # take_blocks returns poses when it is given them
                     raise InputError(f"take {t.name}: no poses")
                 n_c = tb.silent.shape[0]
