@@ -44,7 +44,7 @@ def _rest_done_after(robot, prev, t0: float, timeout_s: float = 10.0) -> float:
     rest handle then). The handle is caught as soon as it exists: the idle motion drops it once rest is reached."""
     rest = None
     while rest is None and time.monotonic() - t0 < timeout_s:
-        r = robot.loop._rest
+        r = robot.loop.resting
         if r is not None and r is not prev:
             rest = r
         else:
@@ -95,7 +95,7 @@ async def _pipecat_side(robot) -> tuple[list[float], ...]:
             await p.speak(PARAGRAPH)
             await asyncio.to_thread(_wait_first_goal, lambda n=n: turns[-1].handle if len(turns) > n else None)
             await asyncio.sleep(delay)
-            prev, t0 = robot.loop._rest, time.monotonic()
+            prev, t0 = robot.loop.resting, time.monotonic()
             await p.interrupt()
             rest.append(await asyncio.to_thread(_rest_done_after, robot, prev, t0))
             await asyncio.sleep(0.5)
