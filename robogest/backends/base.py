@@ -143,7 +143,7 @@ class Backend(ABC):
         self.last_goal_v_rad_s: np.ndarray | None = None
         self.last_goal_a_rad_s2: np.ndarray | None = None
         self.last_goal_monotonic_s = -math.inf
-        #: Set by the glide to rest that ends a session (:func:`~robogest.backends.control.go_to_rest`, a control
+        #: Set by the glide to rest that ends a session (:func:`~robogest.backends.rest.go_to_rest`, a control
         #: loop's close): the motion has stopped and only the way to rest is left, so faults already reported
         #: (a servo lost or flagging a hardware error, a health reading past its limit) no longer abort it; one
         #: that did would turn torque off with the arms raised. A lost port still does. Reset by ``connect``.
@@ -246,7 +246,7 @@ class Backend(ABC):
 
     def shutdown(self) -> None:
         """Torque off and disconnect. Subclasses that can move to rest first
-        (:func:`~robogest.backends.control.go_to_rest`) override this."""
+        (:func:`~robogest.backends.rest.go_to_rest`) override this."""
         try:
             self.set_torque(False)
         finally:

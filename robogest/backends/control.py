@@ -22,7 +22,7 @@ Two ways to run it, sharing every line of the tick:
 
 :meth:`ControlLoop.close` (idempotent) glides to rest, then calls ``backend.shutdown()`` (torque off,
 disconnect); :func:`go_to_rest` is the same glide without a running loop, :func:`signals_end_at_rest` the signals
-that run it (both re-exported from :mod:`robogest.backends.rest` and :mod:`robogest.backends.signals`).
+that run it (in :mod:`robogest.backends.rest` and :mod:`robogest.backends.signals`).
 """
 
 from __future__ import annotations
@@ -34,14 +34,10 @@ from collections.abc import Callable
 import numpy as np
 
 from robogest.backends.base import Backend, check_goal
-from robogest.backends.play_handle import Event, LoopStats, PlayHandle  # (Event, LoopStats: re-exported)
-from robogest.backends.rest import DEFAULT_RATE_HZ, go_to_rest, start_pose  # (go_to_rest: re-exported)
+from robogest.backends.play_handle import LoopStats, PlayHandle
+from robogest.backends.rest import DEFAULT_RATE_HZ, start_pose
 from robogest.backends.signals import (
-    HANDLED_SIGNALS,
-    Interrupted,
     deferred_signals,
-    deliver_signal,
-    signals_end_at_rest,
 )
 from robogest.errors import BackendError, RobogestError
 from robogest.robot.config import LIMIT_MARGIN_RAD
@@ -483,18 +479,3 @@ class ControlLoop:
                 time.sleep(self.period_s)
             else:
                 self.backend.advance(self.period_s)
-
-
-__all__ = [
-    "DEFAULT_RATE_HZ",
-    "HANDLED_SIGNALS",
-    "ControlLoop",
-    "Event",
-    "Interrupted",
-    "LoopStats",
-    "PlayHandle",
-    "deferred_signals",
-    "deliver_signal",
-    "go_to_rest",
-    "signals_end_at_rest",
-]

@@ -272,9 +272,9 @@ class MujocoBackend(Backend):
         return self.sim is not None
 
     def shutdown(self) -> None:
-        """Glide to rest within every limit (:func:`~robogest.backends.control.go_to_rest`, as the servo backends
+        """Glide to rest within every limit (:func:`~robogest.backends.rest.go_to_rest`, as the servo backends
         do), then torque off."""
-        from robogest.backends.control import go_to_rest
+        from robogest.backends.rest import go_to_rest
 
         try:
             if self.sim is not None and self._torque:

@@ -8,7 +8,7 @@ was made at. The clock is ``time.monotonic`` with an absolute schedule; a late t
 while the goal still moves only one limited step from the last goal sent. Simulated backends
 (``realtime = False``) are advanced by ``1 / rate`` per tick instead of waiting.
 
-SIGINT, SIGTERM, SIGHUP and SIGQUIT raise :class:`~robogest.backends.control.Interrupted` (a KeyboardInterrupt) after
+SIGINT, SIGTERM, SIGHUP and SIGQUIT raise :class:`~robogest.backends.signals.Interrupted` (a KeyboardInterrupt) after
 the robot has glided to rest and torque is off; a second signal does not cut the glide short.
 The trajectory must match the robot definition (joints, limits, rest pose; limits come from the robot, never
 the file), and the backend's own guard refuses any goal that still breaks a limit.
@@ -23,7 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robogest.backends.base import Backend
-from robogest.backends.control import ControlLoop, Interrupted, signals_end_at_rest
+from robogest.backends.control import ControlLoop
+from robogest.backends.signals import Interrupted, signals_end_at_rest
 from robogest.errors import BackendError, RobogestError
 from robogest.media.audio import AudioOut, open_output
 from robogest.trajectory.types import Trajectory, check_matches

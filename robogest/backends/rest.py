@@ -11,7 +11,7 @@ from robogest.backends.base import Backend
 from robogest.errors import RobogestError
 from robogest.robot.config import RobotConfig
 
-#: Default control rate, Hz (re-exported as ``robogest.backends.control.DEFAULT_RATE_HZ``).
+#: Default control rate, Hz.
 DEFAULT_RATE_HZ = 100.0
 
 

@@ -41,8 +41,9 @@ def _joint_index(robot: RobotConfig, joint: str) -> int:
 # --- jog -----------------------------------------------------------------------------------------
 def jog(args: argparse.Namespace) -> int:
     """One joint to an angle through the one control loop (online limiter + goal guard) at a fraction of the limits."""
-    from robogest.backends.control import ControlLoop, signals_end_at_rest
+    from robogest.backends.control import ControlLoop
     from robogest.backends.servos.bus import servo_backend
+    from robogest.backends.signals import signals_end_at_rest
     from robogest.robot.registry import find_robot
 
     robot = find_robot(args.robot)

@@ -151,14 +151,14 @@ class Server:
         listening.
 
         The event loop takes those signals itself (a Python signal handler would raise inside whichever task
-        happens to run) and raises :class:`~robogest.backends.control.Interrupted` from here, so the session
+        happens to run) and raises :class:`~robogest.backends.signals.Interrupted` from here, so the session
         ends at rest and the process exits with 128 + the signal number. A session that died and could not be
         reopened raises :class:`~robogest.errors.BackendError` (exit 5), also when a signal comes meanwhile.
         """
         from websockets.asyncio.server import serve
         from websockets.typing import Origin
 
-        from robogest.backends.control import HANDLED_SIGNALS, deliver_signal
+        from robogest.backends.signals import HANDLED_SIGNALS, deliver_signal
 
         loop = asyncio.get_running_loop()
         stop: asyncio.Future = loop.create_future()

@@ -248,7 +248,7 @@ class Robot:
             self.loop.limiter = None
 
     def __enter__(self) -> Robot:
-        from robogest.backends.control import signals_end_at_rest
+        from robogest.backends.signals import signals_end_at_rest
 
         self._exit.enter_context(signals_end_at_rest())
         try:

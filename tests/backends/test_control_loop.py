@@ -16,8 +16,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from robogest.backends.base import Backend
-from robogest.backends.control import ControlLoop, go_to_rest
+from robogest.backends.control import ControlLoop
 from robogest.backends.player import play
+from robogest.backends.rest import go_to_rest
 from robogest.errors import BackendError, InputError
 from robogest.robot.config import RobotConfig
 from robogest.safety import JointLimits, apply_safety
@@ -526,7 +527,7 @@ def test_a_signal_during_the_closing_glide_is_raised_once_at_rest_with_torque_of
     import os
     import signal
 
-    from robogest.backends.control import signals_end_at_rest
+    from robogest.backends.signals import signals_end_at_rest
 
     robot = small_robot()
 

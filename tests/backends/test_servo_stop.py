@@ -13,9 +13,10 @@ import pytest
 import robogest.backends.servos.dynamixel as dxl_backend
 import robogest.backends.servos.feetech as ft_backend
 from robogest.backends.base import get_backend_factory
-from robogest.backends.control import ControlLoop, signals_end_at_rest
+from robogest.backends.control import ControlLoop
 from robogest.backends.player import play
 from robogest.backends.servos.bus import SPEED_CAP_MARGIN
+from robogest.backends.signals import signals_end_at_rest
 from robogest.errors import BackendError
 from robogest.trajectory.types import Trajectory
 from robogest.virtualbus import VirtualBus

@@ -278,7 +278,7 @@ def test_a_stream_whose_motion_cannot_start_finishes_its_handle_instead_of_hangi
 def test_a_signal_as_open_finishes_still_ends_at_rest_with_torque_off(monkeypatch):
     import threading
 
-    from robogest.backends.control import Interrupted
+    from robogest.backends.signals import Interrupted
 
     start = threading.Thread.start
 

@@ -10,7 +10,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from robogest.backends.base import Backend, check_goal
-from robogest.backends.control import ControlLoop, go_to_rest
+from robogest.backends.control import ControlLoop
+from robogest.backends.rest import go_to_rest
 from robogest.errors import SafetyError
 from robogest.robot import find_robot
 from robogest.robot.config import RobotConfig

@@ -293,9 +293,9 @@ class ServoBackend(ServoBusIO):
             self._close()
 
     def shutdown(self) -> None:
-        """Glide to rest (if torque is on and the port answers; :func:`~robogest.backends.control.go_to_rest`),
+        """Glide to rest (if torque is on and the port answers; :func:`~robogest.backends.rest.go_to_rest`),
         then torque off, then close. Idempotent."""
-        from robogest.backends.control import deferred_signals
+        from robogest.backends.signals import deferred_signals
 
         if self._shut_down:
             return
@@ -307,7 +307,7 @@ class ServoBackend(ServoBusIO):
         problems: list[str] = []
         try:
             if self.is_connected and self.torque_enabled and not self.port_lost:
-                from robogest.backends.control import go_to_rest
+                from robogest.backends.rest import go_to_rest
 
                 problem = go_to_rest(self)
                 if problem:
