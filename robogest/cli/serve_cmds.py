@@ -89,7 +89,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run_serve(args: argparse.Namespace) -> int:
     from robogest.live import Robot
-    from robogest.live.server import ServeLimits, Server, bind, check_token, parse_listen, serve_forever
+    from robogest.live.serve_limits import ServeLimits, bind, check_token, parse_listen
+    from robogest.live.server import Server, serve_forever
 
     host, port = parse_listen(args.listen)
     check_token(host, port, args.token)  # before connecting: a non-loopback address without a token is refused

@@ -58,14 +58,9 @@ from urllib.parse import parse_qs, urlsplit
 from robogest.errors import BackendError
 from robogest.live.serve_connection import EVENT_POLL_S, Connection, Say, ServedRobot, peer_of
 from robogest.live.serve_limits import (
-    LOCAL_HOSTS,
-    MMAP_THRESHOLD_BYTES,
     ServeLimits,
-    bind,
     check_token,
     map_large_blocks,
-    needs_token,
-    parse_listen,
     release_freed_memory,
 )
 from robogest.live.serve_messages import PROTOCOL_VERSION
@@ -77,21 +72,6 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 _WATCH_S = 0.05  #: how often the session's health is checked
-
-__all__ = [
-    "LOCAL_HOSTS",
-    "MMAP_THRESHOLD_BYTES",
-    "PROTOCOL_VERSION",
-    "ServeLimits",
-    "Server",
-    "bind",
-    "check_token",
-    "map_large_blocks",
-    "needs_token",
-    "parse_listen",
-    "release_freed_memory",
-    "serve_forever",
-]
 
 
 class Server:

@@ -14,7 +14,7 @@ import pytest
 PROBE = """
 import ctypes, sys
 import numpy as np
-from robogest.live.server import map_large_blocks
+from robogest.live.serve_limits import map_large_blocks
 
 class MallInfo2(ctypes.Structure):
     _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks",
