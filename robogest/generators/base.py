@@ -26,14 +26,11 @@ class Capabilities:
     rest_windows : bool
         :meth:`Generator.rest_windows` gives the spans in which its motion is exactly the rest pose (the planner
         pins those frames to rest).
-    silent_spans : bool
-        It reads :attr:`Speech.silent_spans` and rests in long silences itself.
     """
 
     streaming: bool = False
     live_plan: bool = False
     rest_windows: bool = False
-    silent_spans: bool = False
 
 
 class LivePlanState(Protocol):

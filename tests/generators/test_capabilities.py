@@ -10,9 +10,7 @@ from robogest.generators.base import Capabilities, Generator
 def test_rhythm_declares_streaming_a_live_plan_and_rest_windows():
     from robogest.generators.rhythm import RhythmGenerator
 
-    assert RhythmGenerator.capabilities == Capabilities(
-        streaming=True, live_plan=True, rest_windows=True, silent_spans=True
-    )
+    assert RhythmGenerator.capabilities == Capabilities(streaming=True, live_plan=True, rest_windows=True)
 
 
 @pytest.mark.parametrize(

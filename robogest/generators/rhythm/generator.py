@@ -30,7 +30,7 @@ class RhythmGenerator(Generator):
     """Rule-based, beat-synchronous gestures from a hand-authored lexicon; works on a fresh install."""
 
     name = "rhythm"
-    capabilities = Capabilities(streaming=True, live_plan=True, rest_windows=True, silent_spans=True)
+    capabilities = Capabilities(streaming=True, live_plan=True, rest_windows=True)
 
     def __init__(
         self, config: RhythmConfig | None = None, repertoire: lx.Repertoire | None = None, **overrides: float | str
