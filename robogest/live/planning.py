@@ -11,12 +11,16 @@ from typing import Any
 import numpy as np
 
 from robogest.live.config import SessionConfig
-from robogest.live.prepare import WARM_UP_TEXT, ProcessPreparer, SayPreparer, SayRequest, generator_key
+from robogest.live.prepare import (
+    WARM_UP_TEXT,
+    GeneratorCache,
+    ProcessPreparer,
+    SayPreparer,
+    SayRequest,
+    generator_key,
+)
 from robogest.live.style import BodyLanguage
 from robogest.robot.config import RobotConfig
-
-#: Per-call ``rhythm`` generators kept for reuse (a client trying every ``amount`` must not grow it without bound).
-_MAX_GENERATORS = 16
 
 
 class Planning:
@@ -40,7 +44,7 @@ class Planning:
             if options.generator == "rhythm" and not self.generator_options
             else make_generator(options.generator, **self.generator_options)
         )
-        self._generators: dict[tuple[Any, ...], Any] = {}  #: rhythm generators of per-call body language
+        self._generators = GeneratorCache()  #: rhythm generators of streams' per-call body language
         self.preparer: SayPreparer | ProcessPreparer  #: prepares says: the child process, or this one's worker
         if options.prepare == "process":  # started by start_preparer, once the loop holds the robot
             self.preparer = ProcessPreparer(robot, options.blas_threads)
@@ -78,20 +82,10 @@ class Planning:
     def stream_generator(self, body: BodyLanguage) -> Any:
         """A stream's generator: always ``rhythm`` (the session's options when its generator is ``rhythm``, else
         the defaults), with ``body``'s overrides."""
-        from robogest.generators import make_generator
-
         if body.empty:
             return self.generator if self.generator.name == "rhythm" else self.rhythm
-        if self.options.generator != "rhythm":
-            return make_generator("rhythm", **body.options({}))
-        key = (body.amount, body.gestures)
-        gen = self._generators.get(key)
-        if gen is None:
-            gen = make_generator("rhythm", **body.options(self.generator_options))
-            if len(self._generators) >= _MAX_GENERATORS:
-                self._generators.clear()
-            self._generators[key] = gen
-        return gen
+        base = self.generator_options if self.options.generator == "rhythm" else {}  # a learned one's are not rhythm's
+        return self._generators.get("rhythm", body.options(base))
 
     def warm_up(self, stopping: threading.Event) -> None:
         """Load and run the speech and planning code once (their first calls import a lot; the first eSpeak NG

@@ -78,15 +78,16 @@ def generator_key(name: str, options: dict[str, Any]) -> str:
     return repr((name, sorted(options.items())))
 
 
-class SayPreparer:
-    """Prepares says for one robot, keeping the generators it made (by name and options) for later says."""
+class GeneratorCache:
+    """Generators made by name and options, kept for later calls: per-call body language makes one per distinct
+    ``amount``/``gestures``, and building one (gesture units, filters) costs more than a say's planning. Bounded:
+    past :data:`_MAX_GENERATORS` made here, all but the ``kept`` ones are dropped."""
 
-    def __init__(self, config: RobotConfig, generators: dict[str, SayGenerator] | None = None) -> None:
-        self.config = config
-        self._generators: dict[str, SayGenerator] = dict(generators or {})
-        self._keep = set(self._generators)  # given by the session: never dropped
+    def __init__(self, kept: dict[str, SayGenerator] | None = None) -> None:
+        self._generators: dict[str, SayGenerator] = dict(kept or {})
+        self._keep = set(self._generators)  # given by the owner (e.g. the session's own generator): never dropped
 
-    def generator(self, name: str, options: dict[str, Any]) -> SayGenerator:
+    def get(self, name: str, options: dict[str, Any]) -> SayGenerator:
         from robogest.generators import make_generator
 
         key = generator_key(name, options)
@@ -97,6 +98,17 @@ class SayPreparer:
                 self._generators = {k: g for k, g in self._generators.items() if k in self._keep}
             self._generators[key] = gen
         return gen
+
+
+class SayPreparer:
+    """Prepares says for one robot, keeping the generators it made (by name and options) for later says."""
+
+    def __init__(self, config: RobotConfig, generators: dict[str, SayGenerator] | None = None) -> None:
+        self.config = config
+        self.generators = GeneratorCache(generators)
+
+    def generator(self, name: str, options: dict[str, Any]) -> SayGenerator:
+        return self.generators.get(name, options)
 
     def prepare(self, req: SayRequest) -> PreparedSay:
         """Speech, gestures and the safe trajectory of ``req`` (InputError etc. for a bad input)."""
