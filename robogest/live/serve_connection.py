@@ -9,12 +9,9 @@ import itertools
 import json
 import logging
 import time
-from collections.abc import Coroutine, Sequence
+from collections.abc import Coroutine
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from robogest.errors import InputError, RobogestError
 from robogest.live.serve_limits import release_freed_memory
@@ -24,71 +21,13 @@ if TYPE_CHECKING:
     from websockets.asyncio.server import ServerConnection
 
     from robogest.live.server import Server
+    from robogest.live.session import Robot
+    from robogest.live.stream import StreamUtterance
+    from robogest.live.utterance import UtteranceHandle
 
 log = logging.getLogger("robogest.live.server")  # one log for the whole server (module docstring there)
 
 EVENT_POLL_S = 0.02  #: how often an utterance's events and preparation are polled
-
-
-class ServedUtterance(Protocol):
-    """What the server reads of an utterance (:class:`~robogest.live.session.UtteranceHandle`)."""
-
-    @property
-    def id(self) -> int: ...
-    @property
-    def prepared(self) -> bool: ...
-    @property
-    def done(self) -> bool: ...
-    @property
-    def interrupted(self) -> bool: ...
-    @property
-    def events(self) -> list[dict]: ...
-    def event(self, type_: str) -> dict | None: ...
-    def wait_started(self, timeout_s: float | None = None) -> bool: ...
-
-
-class ServedStream(Protocol):
-    """What the server does with a client's stream (:class:`~robogest.live.session.StreamUtterance`)."""
-
-    @property
-    def handle(self) -> ServedUtterance: ...
-    @property
-    def sample_rate(self) -> int: ...
-    def feed(self, chunk: np.ndarray | bytes, words: Sequence[tuple[str, float, float]] | None = None) -> None: ...
-    def close(self) -> ServedUtterance: ...
-
-
-class ServedRobot(Protocol):
-    """What the server uses of the robot's session (:class:`~robogest.live.Robot`)."""
-
-    @property
-    def time_scale(self) -> float: ...
-    @property
-    def error(self) -> BaseException | None: ...
-    def status(self) -> dict: ...
-    def interrupt(self, wait: bool = True) -> dict: ...
-    def close(self) -> str | None: ...
-    def say(
-        self,
-        text: str | None = None,
-        *,
-        audio: str | Path | None = None,
-        transcript: str | Path | None = None,
-        wait: bool = True,
-        lenient: bool = False,
-        style: str | None = None,
-        amount: float | None = None,
-        gestures: str | None = None,
-    ) -> ServedUtterance: ...
-    def stream(
-        self,
-        sample_rate: int = 16000,
-        lookahead_s: float | None = None,
-        *,
-        style: str | None = None,
-        amount: float | None = None,
-        gestures: str | None = None,
-    ) -> ServedStream: ...
 
 
 _say_seq = itertools.count()
@@ -119,7 +58,7 @@ class Connection:
         self.server = server
         self.ws = ws
         self.peer = peer
-        self.stream: ServedStream | None = None
+        self.stream: StreamUtterance | None = None
         self.stream_format = "int16"
         self._fed_n = 0  #: samples fed to the open stream
         self._played_t0: float | None = None  #: time.monotonic() its audio started playing
@@ -127,7 +66,7 @@ class Connection:
         self.tasks: set[asyncio.Task] = set()
 
     @property
-    def robot(self) -> ServedRobot:
+    def robot(self) -> Robot:
         return self.server.robot  # a reopened session replaces it
 
     async def send(self, obj: dict) -> None:
@@ -195,7 +134,7 @@ class Connection:
         self.server.check_alive("say")
         self.server.enqueue(Say(self, obj, self.server.interrupts))
 
-    async def start_say(self, say: Say) -> ServedUtterance | None:
+    async def start_say(self, say: Say) -> UtteranceHandle | None:
         """The say's turn: prepare it and start it playing; its handle (None: dropped or refused, client told)."""
         obj = say.obj
         if self.server.interrupts != say.asked:
@@ -239,7 +178,7 @@ class Connection:
         await self.send({"type": "accepted", "utterance": h.id, "id": obj.get("id")})
         self.spawn(self._pump(h))
 
-    def _buffered_s(self, st: ServedStream, more_n: int) -> float:
+    def _buffered_s(self, st: StreamUtterance, more_n: int) -> float:
         """Seconds of the open stream ``st``'s audio ahead of what has played, with ``more_n`` samples more."""
         if self._played_t0 is None:
             ev = st.handle.event("audio_start")
@@ -296,7 +235,7 @@ class Connection:
         self.tasks.add(t)
         t.add_done_callback(self.tasks.discard)
 
-    async def _pump(self, h: ServedUtterance) -> None:
+    async def _pump(self, h: UtteranceHandle) -> None:
         """Push the utterance's events as they happen, until it is done."""
         seen: set[tuple] = set()
         while True:

@@ -56,7 +56,7 @@ from typing import TYPE_CHECKING, Any
 from urllib.parse import parse_qs, urlsplit
 
 from robogest.errors import BackendError
-from robogest.live.serve_connection import EVENT_POLL_S, Connection, Say, ServedRobot, peer_of
+from robogest.live.serve_connection import EVENT_POLL_S, Connection, Say, peer_of
 from robogest.live.serve_limits import (
     ServeLimits,
     check_token,
@@ -68,6 +68,8 @@ from robogest.live.serve_messages import PROTOCOL_VERSION
 if TYPE_CHECKING:
     from websockets.asyncio.server import ServerConnection
     from websockets.http11 import Request, Response
+
+    from robogest.live.session import Robot
 
 log = logging.getLogger(__name__)
 
@@ -83,7 +85,7 @@ class Server:
 
     def __init__(
         self,
-        robot: ServedRobot,
+        robot: Robot,
         host: str,
         port: int,
         *,
@@ -91,7 +93,7 @@ class Server:
         allow_origins: Sequence[str] = (),
         limits: ServeLimits | None = None,
         sock: socket.socket | None = None,
-        reopen: Callable[[], ServedRobot] | None = None,
+        reopen: Callable[[], Robot] | None = None,
     ) -> None:
         check_token(host, port, token)
         self.robot = robot
